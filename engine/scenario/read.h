@@ -1,0 +1,23 @@
+// Reading and writing scenario files. Errors name the file, the record and the field.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "engine/scenario/scenario.h"
+
+namespace ss {
+
+// Reads every scenario in a file: GPUDrive/Nocturne JSON when the name ends in .json, a WOMD TFRecord of Scenario
+// protos otherwise. Each scenario is validated (see validate.h).
+absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::string& path);
+
+// Reads every scenario of every file given; a directory contributes its *.json and *.tfrecord* files in name order.
+absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::vector<std::string>& paths);
+
+// Writes scenarios as one WOMD TFRecord file (one Scenario proto per record).
+absl::Status write_scenarios_tfrecord(const std::string& path, const std::vector<Scenario>& scenarios);
+
+}  // namespace ss
