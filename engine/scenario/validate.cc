@@ -8,13 +8,13 @@
 namespace ss {
 namespace {
 
-absl::Status bad(std::string_view where, const std::string& what) {
+absl::Status bad(const std::string& where, const std::string& what) {
   return absl::InvalidArgumentError(absl::StrCat(where, ": ", what));
 }
 
 bool finite(double v) { return std::isfinite(v); }
 
-absl::Status check_point(std::string_view where, const std::string& field, const MapPoint& p) {
+absl::Status check_point(const std::string& where, const std::string& field, const MapPoint& p) {
   if (!finite(p.x) || !finite(p.y) || !finite(p.z))
     return bad(where, absl::StrCat(field, " has a non-finite coordinate (", p.x, ", ", p.y, ", ", p.z, ")"));
   return absl::OkStatus();
@@ -22,7 +22,7 @@ absl::Status check_point(std::string_view where, const std::string& field, const
 
 }  // namespace
 
-absl::Status validate_scenario(const Scenario& s, std::string_view where) {
+absl::Status validate_scenario(const Scenario& s, const std::string& where) {
   const int frames = s.num_frames();
   if (frames == 0) return bad(where, "timestamps_seconds is empty: a scenario needs at least one frame");
   for (int i = 0; i < frames; ++i)
