@@ -1,1 +1,30 @@
-// (being written)
+// scenestreamer: one binary, one subcommand per job.
+#include <cstdio>
+#include <cstring>
+
+#include "tools/commands.h"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: scenestreamer <command> [arguments]\n"
+    "\n"
+    "commands:\n"
+    "  inspect FILE... [--json]            what a scenario file holds and how faithfully the tokenizers encode it\n"
+    "  convert IN... --out FILE.tfrecord   scenarios (GPUDrive JSON or WOMD TFRecord) into one WOMD TFRecord\n"
+    "\n"
+    "Run `scenestreamer <command> --help` for a command's arguments.\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "help")) {
+    std::fputs(kUsage, argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  const char* cmd = argv[1];
+  if (!std::strcmp(cmd, "inspect")) return ss::cli::inspect_main(argc - 1, argv + 1);
+  if (!std::strcmp(cmd, "convert")) return ss::cli::convert_main(argc - 1, argv + 1);
+  std::fprintf(stderr, "scenestreamer: unknown command '%s'\n\n%s", cmd, kUsage);
+  return 2;
+}

@@ -1,0 +1,9 @@
+// The subcommands of the `scenestreamer` binary. Each returns the process exit code.
+#pragma once
+
+namespace ss::cli {
+
+int inspect_main(int argc, char** argv);  // argv[0] is the subcommand name
+int convert_main(int argc, char** argv);
+
+}  // namespace ss::cli
