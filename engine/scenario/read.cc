@@ -1,1 +1,128 @@
-// (being written)
+#include "engine/scenario/read.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <system_error>
+
+#include "absl/strings/str_cat.h"
+#include "engine/scenario/gpudrive_json.h"
+#include "engine/scenario/tfrecord.h"
+#include "engine/scenario/validate.h"
+#include "engine/scenario/womd_proto.h"
+
+namespace ss {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool is_json_name(const std::string& name) { return name.size() >= 5 && name.ends_with(".json"); }
+// WOMD shards are named like "training.tfrecord-00000-of-01000", hence "contains" rather than "ends with".
+bool is_tfrecord_name(const std::string& name) { return name.find(".tfrecord") != std::string::npos; }
+
+absl::Status not_found(const std::string& path) {
+  return absl::NotFoundError(absl::StrCat(path, ": no such file or directory"));
+}
+
+absl::StatusOr<std::string> read_whole_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return not_found(path);
+  std::ostringstream buf;
+  buf << in.rdbuf();
+  if (in.bad()) return absl::InternalError(absl::StrCat(path, ": read failed"));
+  return std::move(buf).str();
+}
+
+absl::Status read_json(const std::string& path, std::vector<Scenario>* out) {
+  auto text = read_whole_file(path);
+  if (!text.ok()) return text.status();
+  auto s = scenario_from_gpudrive_json(*text, path);
+  if (!s.ok()) return s.status();
+  out->push_back(std::move(*s));
+  return absl::OkStatus();
+}
+
+absl::Status read_tfrecord(const std::string& path, std::vector<Scenario>* out) {
+  // One record at a time: a WOMD shard is hundreds of megabytes, and only the decoded scenarios need to stay.
+  auto reader = TfRecordReader::open(path);
+  if (!reader.ok()) return reader.status();
+  std::string record;
+  while (true) {
+    const int index = reader->records_read();
+    auto more = reader->next(&record);
+    if (!more.ok()) return more.status();
+    if (!*more) break;
+    auto s = scenario_from_womd_bytes(record, absl::StrCat(path, " record ", index));
+    if (!s.ok()) return s.status();
+    out->push_back(std::move(*s));
+  }
+  if (reader->records_read() == 0)
+    return absl::InvalidArgumentError(absl::StrCat(path, ": holds no scenarios (no TFRecord records)"));
+  return absl::OkStatus();
+}
+
+absl::Status read_file(const std::string& path, std::vector<Scenario>* out) {
+  if (is_json_name(fs::path(path).filename().string())) return read_json(path, out);
+  return read_tfrecord(path, out);
+}
+
+absl::Status read_directory(const std::string& dir, std::vector<Scenario>* out) {
+  std::error_code ec;
+  std::vector<std::pair<std::string, std::string>> files;  // (name, path)
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!is_json_name(name) && !is_tfrecord_name(name)) continue;
+    std::error_code fec;
+    if (!it->is_regular_file(fec)) continue;  // also follows symlinks
+    files.emplace_back(name, it->path().string());
+  }
+  if (ec) return absl::InternalError(absl::StrCat(dir, ": cannot list the directory: ", ec.message()));
+  if (files.empty()) return absl::InvalidArgumentError(absl::StrCat(dir, ": holds no *.json or *.tfrecord* files"));
+  std::sort(files.begin(), files.end());
+  for (const auto& [name, path] : files)
+    if (auto st = read_file(path, out); !st.ok()) return st;
+  return absl::OkStatus();
+}
+
+absl::Status read_path(const std::string& path, std::vector<Scenario>* out) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) return not_found(path);
+  if (fs::is_directory(st)) return read_directory(path, out);
+  return read_file(path, out);
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::string& path) {
+  std::vector<Scenario> out;
+  if (auto st = read_path(path, &out); !st.ok()) return st;
+  return out;
+}
+
+absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::vector<std::string>& paths) {
+  if (paths.empty()) return absl::InvalidArgumentError("read_scenarios: no paths given");
+  std::vector<Scenario> out;
+  for (const std::string& p : paths)
+    if (auto st = read_path(p, &out); !st.ok()) return st;
+  return out;
+}
+
+absl::Status write_scenarios_tfrecord(const std::string& path, const std::vector<Scenario>& scenarios) {
+  // A file with no records would not read back (read_scenarios rejects it), so do not write one.
+  if (scenarios.empty()) return absl::InvalidArgumentError(absl::StrCat(path, ": no scenarios to write"));
+  std::vector<std::string> records;
+  records.reserve(scenarios.size());
+  for (size_t i = 0; i < scenarios.size(); ++i) {
+    const std::string where = absl::StrCat(path, " scenario ", i);
+    // Only what reads back: the reader validates every scenario.
+    if (auto st = validate_scenario(scenarios[i], where); !st.ok()) return st;
+    auto bytes = encode_womd_scenario(scenarios[i], where);
+    if (!bytes.ok()) return bytes.status();
+    records.push_back(std::move(*bytes));
+  }
+  return write_tfrecord_file(path, records);
+}
+
+}  // namespace ss
