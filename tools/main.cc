@@ -12,6 +12,7 @@ constexpr const char* kUsage =
     "commands:\n"
     "  inspect FILE... [--json]            what a scenario file holds and how faithfully the tokenizers encode it\n"
     "  convert IN... --out FILE.tfrecord   scenarios (GPUDrive JSON or WOMD TFRecord) into one WOMD TFRecord\n"
+    "  init-weights --config C --out FILE  random model weights (safetensors; C small|large; --seed S)\n"
     "\n"
     "Run `scenestreamer <command> --help` for a command's arguments.\n";
 
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
   const char* cmd = argv[1];
   if (!std::strcmp(cmd, "inspect")) return ss::cli::inspect_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "convert")) return ss::cli::convert_main(argc - 1, argv + 1);
+  if (!std::strcmp(cmd, "init-weights")) return ss::cli::init_weights_main(argc - 1, argv + 1);
   std::fprintf(stderr, "scenestreamer: unknown command '%s'\n\n%s", cmd, kUsage);
   return 2;
 }

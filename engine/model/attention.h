@@ -1,0 +1,54 @@
+// Sparse relative attention (paper appendix C.3, folded as DESIGN.md difference 1):
+//   score_ij = (q_i . k_j + q'_i . r_ij) / sqrt(head_dim),  r_ij = W_rk h_ij + b_rk,
+//   out_i    = sum_j a_ij (v_j + W_rv h_ij + b_rv),
+// with h_ij = relu(fc2(relu(fc1(f_ij)))) a relation embedding shared by all layers of one attention kind.
+// q'_i . r_ij is computed as (W_rk^T q'_i) . h_ij: one dot product of relation_dim per pair and head instead of a
+// projection per pair. (q'_i . b_rk is the same for every key of a query, so it cancels in the softmax.)
+#pragma once
+
+#include <array>
+#include <span>
+#include <vector>
+
+#include "engine/geometry/geometry.h"
+#include "engine/model/linalg.h"
+#include "engine/model/vocab.h"
+
+namespace ss {
+
+struct AttentionParams {
+  LinearParams query, key, value, output, rel_query, rel_key, rel_value;
+};
+
+struct RelationParams {
+  LinearParams fc1, fc2;
+};
+
+// A query's or key's place in space and time.
+struct Anchor {
+  bool has_pose = false;
+  Pose pose;
+  int step = 0;
+};
+
+using RelationFeatures = std::array<float, kRelationFeatures>;
+// f_ij of key `k` seen from query `q`: the key's offset in the query's frame (dx, dy) and distance, in units of
+// 10 m; sin and cos of the heading difference; the step difference / 5; and 1 when both have a position. Without
+// a position on either side the spatial features are 0.
+RelationFeatures relation_features(const Anchor& q, const Anchor& k);
+
+// h = relu(fc2(relu(fc1(f)))) for a batch of feature rows (m x 7 -> m x relation_dim).
+Mat relation_embedding(const Mat& features, const RelationParams& p);
+
+// The keys one query reads: rows of the key/value matrices and their relation embeddings (one row per key).
+struct QueryKeys {
+  std::vector<int> keys;
+  Mat relation;  // keys.size() x relation_dim
+};
+
+// Attention for a batch of queries. `x`: the queries' normalised inputs (n x d). `k`, `v`: projected keys and values
+// of every key the queries may name. Returns the output projection (n x d).
+Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
+                       std::span<const QueryKeys* const> query_keys);
+
+}  // namespace ss

@@ -1,0 +1,239 @@
+// The decoder: token embeddings, which keys each token reads, and the layer stack over the KV cache.
+#include <algorithm>
+#include <map>
+#include <unordered_map>
+
+#include "engine/model/model.h"
+
+namespace ss {
+
+KvCache Model::new_cache() const {
+  KvCache cache;
+  cache.init(config().decoder_layers, config().d_model);
+  return cache;
+}
+
+Mat Model::embed(std::span<const DecoderToken> tokens) const {
+  const int d = config().d_model;
+  const int n = static_cast<int>(tokens.size());
+  auto row = [d](const float* table, int i) { return VecMap(table + static_cast<size_t>(i) * d, d); };
+  Mat x = Mat::Zero(n, d);
+  // The two small MLPs run batched over the tokens that use them.
+  std::vector<int> motion_rows, rs_rows;
+  for (int i = 0; i < n; ++i) {
+    const DecoderToken& t = tokens[i];
+    auto xi = x.row(i);
+    switch (t.kind) {
+      case TokenKind::light:
+        xi = row(light_state_emb_, t.light_state) + row(light_slot_emb_, t.light_slot) + row(map_id_embedding_, t.map_id);
+        break;
+      case TokenKind::sos: xi = row(special_emb_, kSpecialSos); break;
+      case TokenKind::eos: xi = row(special_emb_, kSpecialEos); break;
+      case TokenKind::soa:
+        xi = row(special_emb_, kSpecialSoa) + row(intra_emb_, t.intra_index) + row(agent_slot_emb_, t.agent_slot);
+        break;
+      case TokenKind::type:
+        xi = row(intra_emb_, t.intra_index) + row(agent_slot_emb_, t.agent_slot) + row(agent_type_emb_, t.agent_type);
+        break;
+      case TokenKind::map_segment:
+      case TokenKind::relative_state:
+        xi = row(intra_emb_, t.intra_index) + row(agent_slot_emb_, t.agent_slot) + row(agent_type_emb_, t.agent_type) +
+             row(map_id_embedding_, t.map_id);
+        if (t.kind == TokenKind::relative_state) rs_rows.push_back(i);
+        break;
+      case TokenKind::motion:
+        xi = row(motion_action_emb_, t.motion_action) + row(agent_type_emb_, t.agent_type) +
+             row(agent_slot_emb_, t.agent_slot);
+        motion_rows.push_back(i);
+        break;
+    }
+  }
+  auto add_mlp = [&](const std::vector<int>& rows, int width, auto features, const LinearParams& fc1,
+                     const LinearParams& fc2) {
+    if (rows.empty()) return;
+    Mat in(rows.size(), width);
+    for (size_t r = 0; r < rows.size(); ++r) in.row(r) = Eigen::Map<const Vec>(features(tokens[rows[r]]), width);
+    Mat h = linear(in, fc1);
+    relu_inplace(h);
+    h = linear(h, fc2);
+    for (size_t r = 0; r < rows.size(); ++r) x.row(rows[r]) += h.row(r);
+  };
+  add_mlp(motion_rows, kMotionStateFeatures, [](const DecoderToken& t) { return t.motion_state.data(); },
+          motion_state_fc1_, motion_state_fc2_);
+  add_mlp(rs_rows, kRsFields, [](const DecoderToken& t) { return t.relative_state.data(); }, rs_embed_fc1_,
+          rs_embed_fc2_);
+  return x;
+}
+
+namespace {
+
+Anchor anchor_of(const DecoderToken& t) { return {t.has_pose, t.pose, t.step}; }
+
+// Where to look for the keys a query may read, so that candidates are not found by scanning the whole cache.
+struct TokenIndex {
+  struct Step {
+    std::vector<int> lights, group, motion;
+  };
+  std::map<int, Step> steps;
+  std::unordered_map<int64_t, std::vector<int>> objects;
+
+  void add(const DecoderToken& t, int i) {
+    Step& s = steps[t.step];
+    if (t.kind == TokenKind::light) s.lights.push_back(i);
+    else if (t.kind == TokenKind::motion) s.motion.push_back(i);
+    else s.group.push_back(i);
+    if (t.object != kNoObject) objects[t.object].push_back(i);
+  }
+  const Step* at(int step) const {
+    auto it = steps.find(step);
+    return it == steps.end() ? nullptr : &it->second;
+  }
+};
+
+}  // namespace
+
+Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderToken> tokens) const {
+  const int c = cache.size();
+  const int window = config().window_steps;
+  auto token = [&](int j) -> const DecoderToken& { return j < c ? cache.tokens[j] : tokens[j - c]; };
+  TokenIndex index;
+  for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) index.add(token(j), j);
+
+  KeySets out;
+  std::vector<int> candidates, keys, spatial;
+  std::vector<double> dist;
+  std::vector<int64_t> order;
+  for (size_t i = 0; i < tokens.size(); ++i) {
+    const DecoderToken& q = tokens[i];
+    candidates.clear();
+    auto take = [&](const std::vector<int>& v) { candidates.insert(candidates.end(), v.begin(), v.end()); };
+    if (const auto* now = index.at(q.step)) {
+      take(now->lights);
+      if (q.kind == TokenKind::motion) take(now->motion);
+      if (is_agent_state_group(q.kind)) take(now->group);
+    }
+    if (q.kind != TokenKind::motion)
+      if (const auto* prev = index.at(q.step - 1)) take(prev->motion);
+    if (is_agent_state_group(q.kind))
+      for (int s = q.step - window + 1; s < q.step; ++s)
+        if (const auto* earlier = index.at(s))
+          for (int j : earlier->group)
+            if (token(j).kind == TokenKind::sos || token(j).kind == TokenKind::eos) candidates.push_back(j);
+    if (q.object != kNoObject)
+      if (auto it = index.objects.find(q.object); it != index.objects.end()) take(it->second);
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+
+    keys.clear();
+    spatial.clear();
+    dist.clear();
+    order.clear();
+    for (int j : candidates) {
+      const DecoderToken& k = token(j);
+      if (!may_attend(q, k, window)) continue;
+      if (is_spatial_pair(q, k)) {
+        spatial.push_back(j);
+        dist.push_back(distance({q.pose.x, q.pose.y}, {k.pose.x, k.pose.y}));
+        order.push_back(k.seq);
+      } else {
+        keys.push_back(j);
+      }
+    }
+    for (int pos : nearest_within(dist, order, limit_)) keys.push_back(spatial[pos]);
+    std::sort(keys.begin(), keys.end());
+
+    auto set = std::make_unique<QueryKeys>();
+    set->keys = keys;
+    Mat f(keys.size(), kRelationFeatures);
+    for (size_t j = 0; j < keys.size(); ++j) {
+      const RelationFeatures rf = relation_features(anchor_of(q), anchor_of(token(keys[j])));
+      f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+    }
+    set->relation = relation_embedding(f, self_relation_);
+    out.per_query.push_back(set.get());
+    out.sets.push_back(std::move(set));
+  }
+  return out;
+}
+
+Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderToken> tokens) const {
+  KeySets out;
+  const int m = map.size();
+  const QueryKeys* whole_map = nullptr;  // for queries without a position: every segment, no spatial relation
+  std::map<std::tuple<double, double, double>, const QueryKeys*> by_pose;  // RS and motion of an agent share a pose
+  for (const DecoderToken& q : tokens) {
+    if (!q.has_pose && whole_map) {
+      out.per_query.push_back(whole_map);
+      continue;
+    }
+    if (q.has_pose) {
+      auto it = by_pose.find({q.pose.x, q.pose.y, q.pose.heading});
+      if (it != by_pose.end()) {
+        out.per_query.push_back(it->second);
+        continue;
+      }
+    }
+    auto set = std::make_unique<QueryKeys>();
+    if (!q.has_pose) {
+      set->keys.resize(m);
+      for (int j = 0; j < m; ++j) set->keys[j] = j;
+    } else {
+      const std::vector<int> near = map.index.k_nearest({q.pose.x, q.pose.y}, config().knn_k);
+      std::vector<double> dist;
+      std::vector<int64_t> order(near.begin(), near.end());
+      for (int j : near) dist.push_back(distance({q.pose.x, q.pose.y}, {map.segments[j].pose.x, map.segments[j].pose.y}));
+      for (int pos : nearest_within(dist, order, limit_)) set->keys.push_back(near[pos]);
+      std::sort(set->keys.begin(), set->keys.end());
+    }
+    // Map tokens are static: their step is the query's, so the step difference is 0.
+    Mat f(set->keys.size(), kRelationFeatures);
+    for (size_t j = 0; j < set->keys.size(); ++j) {
+      const RelationFeatures rf =
+          relation_features(anchor_of(q), {true, map.segments[set->keys[j]].pose, q.step});
+      f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+    }
+    set->relation = relation_embedding(f, cross_relation_);
+    if (!q.has_pose) whole_map = set.get();
+    else by_pose[{q.pose.x, q.pose.y, q.pose.heading}] = set.get();
+    out.per_query.push_back(set.get());
+    out.sets.push_back(std::move(set));
+  }
+  return out;
+}
+
+Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToken>& tokens) const {
+  const ModelConfig& c = config();
+  const int n = static_cast<int>(tokens.size());
+  if (n == 0) return Mat(0, c.d_model);
+  for (int i = 0; i < n; ++i) tokens[i].seq = cache.next_seq + i;
+  const KeySets self = self_keys(cache, tokens);
+  const KeySets cross = cross_keys(map, tokens);
+  const int total = cache.size() + n;
+
+  Mat x = embed(tokens);
+  for (int l = 0; l < c.decoder_layers; ++l) {
+    const DecoderLayerParams& L = decoder_layers_[l];
+    const Mat xc = layer_norm(x, L.cross_norm);
+    x += relative_attention(xc, L.cross, c.heads, MatMap(map.cross_keys[l].data(), map.size(), c.d_model),
+                            MatMap(map.cross_values[l].data(), map.size(), c.d_model), cross.per_query);
+    const Mat xs = layer_norm(x, L.self_norm);
+    const Mat k = linear(xs, L.self.key), v = linear(xs, L.self.value);
+    cache.k[l].insert(cache.k[l].end(), k.data(), k.data() + k.size());
+    cache.v[l].insert(cache.v[l].end(), v.data(), v.data() + v.size());
+    x += relative_attention(xs, L.self, c.heads, MatMap(cache.k[l].data(), total, c.d_model),
+                            MatMap(cache.v[l].data(), total, c.d_model), self.per_query);
+    Mat f = linear(layer_norm(x, L.ffn_norm), L.ffn1);
+    relu_inplace(f);
+    x += linear(f, L.ffn2);
+  }
+  cache.tokens.insert(cache.tokens.end(), tokens.begin(), tokens.end());
+  cache.next_seq += n;
+  return layer_norm(x, decoder_final_norm_);
+}
+
+Mat Model::decode_full(const MapContext& map, std::vector<DecoderToken>& tokens) const {
+  KvCache cache = new_cache();
+  return decode(map, cache, tokens);
+}
+
+}  // namespace ss

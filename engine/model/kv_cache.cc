@@ -1,0 +1,44 @@
+#include "engine/model/kv_cache.h"
+
+#include <algorithm>
+
+namespace ss {
+
+void KvCache::init(int layers, int d) {
+  tokens.clear();
+  k.assign(layers, {});
+  v.assign(layers, {});
+  d_model = d;
+  next_seq = 0;
+}
+
+void KvCache::evict_before(int first_step) {
+  // Tokens are appended step by step, so the old ones form a prefix.
+  const auto first_kept = std::find_if(tokens.begin(), tokens.end(),
+                                       [&](const DecoderToken& t) { return t.step >= first_step; });
+  const size_t drop = first_kept - tokens.begin();
+  if (drop == 0) return;
+  tokens.erase(tokens.begin(), first_kept);
+  for (size_t l = 0; l < k.size(); ++l) {
+    k[l].erase(k[l].begin(), k[l].begin() + drop * d_model);
+    v[l].erase(v[l].begin(), v[l].begin() + drop * d_model);
+  }
+}
+
+void KvCache::truncate(int n) {
+  if (n >= size()) return;
+  next_seq -= size() - n;
+  tokens.resize(n);
+  for (size_t l = 0; l < k.size(); ++l) {
+    k[l].resize(static_cast<size_t>(n) * d_model);
+    v[l].resize(static_cast<size_t>(n) * d_model);
+  }
+}
+
+size_t KvCache::bytes() const {
+  size_t b = tokens.capacity() * sizeof(DecoderToken);
+  for (size_t l = 0; l < k.size(); ++l) b += (k[l].capacity() + v[l].capacity()) * sizeof(float);
+  return b;
+}
+
+}  // namespace ss

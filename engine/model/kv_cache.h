@@ -1,0 +1,30 @@
+// A session's decoder state: the tokens of the last `window_steps` steps and their per-layer keys and values.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/model/linalg.h"
+#include "engine/model/token.h"
+
+namespace ss {
+
+struct KvCache {
+  std::vector<DecoderToken> tokens;     // sequence order, oldest first
+  std::vector<std::vector<float>> k, v; // per decoder layer: tokens.size() rows of d_model, row-major
+  int d_model = 0;
+  int64_t next_seq = 0;                 // seq of the next token appended
+
+  void init(int layers, int d);
+  int size() const { return static_cast<int>(tokens.size()); }
+  MatMap keys(int layer) const { return MatMap(k[layer].data(), size(), d_model); }
+  MatMap values(int layer) const { return MatMap(v[layer].data(), size(), d_model); }
+  // Drops tokens of steps before `first_step`: nothing later may attend to them (mask.h).
+  void evict_before(int first_step);
+  // Drops the newest tokens beyond the first `n` (undoes a decode, e.g. a rejected agent sample).
+  void truncate(int n);
+  // Bytes held (tokens and keys/values).
+  size_t bytes() const;
+};
+
+}  // namespace ss

@@ -1,0 +1,243 @@
+// Model construction (parameter lookup), the map encoder and the heads. The decoder is in decoder.cc.
+#include "engine/model/model.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+
+namespace ss {
+
+Model::Model(Weights w) : weights_(std::move(w)) {
+  const ModelConfig& c = weights_.config;
+  limit_ = {c.knn_k, c.knn_radius, c.knn_always};
+  poly_fc1_ = lin("encoder.polyline.fc1", false);
+  poly_norm1_ = norm("encoder.polyline.norm1");
+  poly_fc2_ = lin("encoder.polyline.fc2");
+  poly_norm2_ = norm("encoder.polyline.norm2");
+  poly_fc3_ = lin("encoder.polyline.fc3");
+  poly_fc4_ = lin("encoder.polyline.fc4");
+  encoder_relation_ = {lin("encoder.relation.fc1"), lin("encoder.relation.fc2")};
+  for (int l = 0; l < c.encoder_layers; ++l) {
+    const std::string L = absl::StrCat("encoder.layers.", l);
+    encoder_layers_.push_back({norm(L + ".attn_norm"), norm(L + ".ffn_norm"), attn(L + ".attn"),
+                               lin(L + ".ffn.fc1"), lin(L + ".ffn.fc2")});
+  }
+  encoder_final_norm_ = norm("encoder.final_norm");
+  map_id_embedding_ = weights_.at("encoder.map_id_embedding").data.data();
+
+  agent_type_emb_ = weights_.at("embed.agent_type").data.data();
+  agent_slot_emb_ = weights_.at("embed.agent_slot").data.data();
+  light_slot_emb_ = weights_.at("embed.light_slot").data.data();
+  light_state_emb_ = weights_.at("embed.light_state").data.data();
+  motion_action_emb_ = weights_.at("embed.motion_action").data.data();
+  special_emb_ = weights_.at("embed.special").data.data();
+  intra_emb_ = weights_.at("embed.intra_index").data.data();
+  motion_state_fc1_ = lin("embed.motion_state.fc1");
+  motion_state_fc2_ = lin("embed.motion_state.fc2");
+  rs_embed_fc1_ = lin("embed.relative_state.fc1");
+  rs_embed_fc2_ = lin("embed.relative_state.fc2");
+
+  self_relation_ = {lin("decoder.self_relation.fc1"), lin("decoder.self_relation.fc2")};
+  cross_relation_ = {lin("decoder.cross_relation.fc1"), lin("decoder.cross_relation.fc2")};
+  for (int l = 0; l < c.decoder_layers; ++l) {
+    const std::string L = absl::StrCat("decoder.layers.", l);
+    decoder_layers_.push_back({norm(L + ".cross_norm"), norm(L + ".self_norm"), norm(L + ".ffn_norm"),
+                               attn(L + ".cross_attn"), attn(L + ".self_attn"), lin(L + ".ffn.fc1"),
+                               lin(L + ".ffn.fc2")});
+  }
+  decoder_final_norm_ = norm("decoder.final_norm");
+
+  light_head_ = mlp_head("head.light");
+  motion_head_ = mlp_head("head.motion");
+  agent_type_head_ = lin("head.agent_type");
+  end_of_agents_head_ = lin("head.end_of_agents");
+  pointer_query_ = lin("head.map_segment.query");
+  pointer_key_ = lin("head.map_segment.key");
+  rs_input_emb_ = weights_.at("head.relative_state.input_embedding").data.data();
+  rs_position_emb_ = weights_.at("head.relative_state.position_embedding").data.data();
+  for (int b = 0; b < c.rs_layers; ++b) {
+    const std::string B = absl::StrCat("head.relative_state.blocks.", b);
+    rs_blocks_.push_back({lin(B + ".adaln1"), lin(B + ".adaln2"), lin(B + ".attn.query"), lin(B + ".attn.key"),
+                          lin(B + ".attn.value"), lin(B + ".attn.output"), lin(B + ".ffn.fc1"),
+                          lin(B + ".ffn.fc2")});
+  }
+  rs_final_adaln_ = lin("head.relative_state.final_adaln");
+  rs_output_ = lin("head.relative_state.output");
+}
+
+absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights) {
+  if (auto st = validate_config(weights.config); !st.ok()) return st;
+  // The weight loader checked every tensor against model_parameter_specs; a Weights built in memory is checked here.
+  for (const TensorSpec& spec : model_parameter_specs(weights.config)) {
+    auto it = weights.tensors.find(spec.name);
+    if (it == weights.tensors.end()) return absl::InvalidArgumentError(absl::StrCat("weights lack tensor ", spec.name));
+    if (it->second.shape != spec.shape)
+      return absl::InvalidArgumentError(absl::StrCat("weights tensor ", spec.name, " has the wrong shape"));
+  }
+  return std::shared_ptr<const Model>(new Model(std::move(weights)));
+}
+
+LinearParams Model::lin(const std::string& name, bool bias) const {
+  const Tensor& w = weights_.at(name + ".weight");
+  LinearParams p;
+  p.weight = w.data.data();
+  p.out = static_cast<int>(w.shape[0]);
+  p.in = static_cast<int>(w.shape[1]);
+  if (bias) p.bias = weights_.at(name + ".bias").data.data();
+  return p;
+}
+
+NormParams Model::norm(const std::string& name) const {
+  const Tensor& w = weights_.at(name + ".weight");
+  return {w.data.data(), weights_.at(name + ".bias").data.data(), static_cast<int>(w.shape[0])};
+}
+
+AttentionParams Model::attn(const std::string& name) const {
+  return {lin(name + ".query"),     lin(name + ".key"),     lin(name + ".value"),    lin(name + ".output"),
+          lin(name + ".rel_query"), lin(name + ".rel_key"), lin(name + ".rel_value")};
+}
+
+MlpHeadParams Model::mlp_head(const std::string& name) const {
+  return {norm(name + ".norm1"), norm(name + ".norm2"), lin(name + ".fc1", false), lin(name + ".fc2")};
+}
+
+size_t MapContext::bytes() const {
+  size_t b = tokens.size() + pointer_keys.size();
+  for (const Mat& m : cross_keys) b += m.size();
+  for (const Mat& m : cross_values) b += m.size();
+  b *= sizeof(float);
+  for (const MapSegment& s : segments) b += sizeof(MapSegment) + s.points.capacity() * sizeof(MapPoint);
+  return b;
+}
+
+absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<MapSegment> segments) const {
+  const ModelConfig& c = config();
+  if (segments.empty()) return absl::FailedPreconditionError("the map has no segments: nothing to place agents on");
+  if (static_cast<int>(segments.size()) > c.max_map_segments) segments.resize(c.max_map_segments);
+  auto map = std::make_shared<MapContext>(std::move(segments));
+  const int m = map->size();
+
+  // PointNet, batched over the valid vectors of every segment.
+  std::vector<int> owner;  // segment of each stacked vector
+  std::vector<SegmentFeatures> features(m);
+  for (int i = 0; i < m; ++i) {
+    features[i] = segment_point_features(map->segments[i]);
+    const int n = std::min(map->segments[i].num_vectors(), kMaxVectorsPerSegment);
+    for (int v = 0; v < n; ++v) owner.push_back(i);
+  }
+  Mat points(owner.size(), kPointFeatures);
+  for (size_t r = 0, i = 0; i < static_cast<size_t>(m); ++i) {
+    const int n = std::min(map->segments[i].num_vectors(), kMaxVectorsPerSegment);
+    for (int v = 0; v < n; ++v, ++r)
+      points.row(r) = VecMap(features[i].data() + v * kPointFeatureDim, kPointFeatureDim);
+  }
+  auto segment_max = [&](const Mat& x) {
+    Mat pooled = Mat::Constant(m, x.cols(), -std::numeric_limits<float>::infinity());
+    for (size_t r = 0; r < owner.size(); ++r) pooled.row(owner[r]) = pooled.row(owner[r]).cwiseMax(x.row(r));
+    return pooled;
+  };
+  Mat h1 = layer_norm(linear(points, poly_fc1_), poly_norm1_);
+  relu_inplace(h1);
+  const Mat pooled1 = segment_max(h1);
+  Mat cat(owner.size(), 2 * c.polyline_dim);
+  for (size_t r = 0; r < owner.size(); ++r) cat.row(r) << h1.row(r), pooled1.row(owner[r]);
+  Mat h2 = layer_norm(linear(cat, poly_fc2_), poly_norm2_);
+  relu_inplace(h2);
+  Mat h3 = linear(segment_max(h2), poly_fc3_);
+  relu_inplace(h3);
+  Mat x = linear(h3, poly_fc4_);
+
+  // Transformer layers over segments, each reading its nearest segments.
+  std::vector<QueryKeys> keys(m);
+  std::vector<const QueryKeys*> key_ptrs;
+  for (const QueryKeys& k : keys) key_ptrs.push_back(&k);
+  for (int i = 0; i < m; ++i) {
+    const Pose& p = map->segments[i].pose;
+    std::vector<int> near = map->index.k_nearest({p.x, p.y}, c.knn_k);
+    std::vector<double> dist;
+    std::vector<int64_t> order(near.begin(), near.end());
+    for (int j : near) dist.push_back(distance({p.x, p.y}, {map->segments[j].pose.x, map->segments[j].pose.y}));
+    Mat f(0, kRelationFeatures);
+    for (int pos : nearest_within(dist, order, limit_)) keys[i].keys.push_back(near[pos]);
+    std::sort(keys[i].keys.begin(), keys[i].keys.end());
+    f.resize(keys[i].keys.size(), kRelationFeatures);
+    for (size_t j = 0; j < keys[i].keys.size(); ++j) {
+      const RelationFeatures rf = relation_features({true, p, 0}, {true, map->segments[keys[i].keys[j]].pose, 0});
+      f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+    }
+    keys[i].relation = relation_embedding(f, encoder_relation_);
+  }
+  for (const EncoderLayerParams& L : encoder_layers_) {
+    const Mat xn = layer_norm(x, L.attn_norm);
+    const Mat k = linear(xn, L.attn.key), v = linear(xn, L.attn.value);
+    x += relative_attention(xn, L.attn, c.heads, MatMap(k.data(), m, c.d_model), MatMap(v.data(), m, c.d_model), key_ptrs);
+    Mat f = linear(layer_norm(x, L.ffn_norm), L.ffn1);
+    relu_inplace(f);
+    x += linear(f, L.ffn2);
+  }
+  map->tokens = layer_norm(x, encoder_final_norm_) + MatMap(map_id_embedding_, m, c.d_model);
+  for (const DecoderLayerParams& L : decoder_layers_) {
+    map->cross_keys.push_back(linear(map->tokens, L.cross.key));
+    map->cross_values.push_back(linear(map->tokens, L.cross.value));
+  }
+  map->pointer_keys = linear(map->tokens, pointer_key_);
+  return std::shared_ptr<const MapContext>(std::move(map));
+}
+
+Mat Model::mlp_head_forward(const Mat& h, const MlpHeadParams& p) const {
+  Mat x = layer_norm(linear(layer_norm(h, p.norm1), p.fc1), p.norm2);
+  relu_inplace(x);
+  return linear(x, p.fc2);
+}
+
+Mat Model::light_logits(const Mat& h) const { return mlp_head_forward(h, light_head_); }
+Mat Model::motion_logits(const Mat& h) const { return mlp_head_forward(h, motion_head_); }
+Mat Model::agent_type_logits(const Mat& h) const { return linear(h, agent_type_head_); }
+Mat Model::end_of_agents_logits(const Mat& h) const { return linear(h, end_of_agents_head_); }
+
+Mat Model::map_segment_logits(const Mat& h, const MapContext& map) const {
+  const float scale = 1.0f / std::sqrt(static_cast<float>(config().d_model));
+  return (linear(h, pointer_query_) * map.pointer_keys.transpose()) * scale;
+}
+
+Vec Model::relative_state_logits(const Mat& z, std::span<const int> prefix) const {
+  const int d = config().d_model, heads = config().heads, dh = d / heads;
+  const int n = static_cast<int>(prefix.size()) + 1;  // start token + the fields so far
+  Mat x(n, d);
+  for (int j = 0; j < n; ++j) {
+    const int input = j == 0 ? kRsBins : prefix[j - 1];
+    x.row(j) = VecMap(rs_input_emb_ + input * d, d) + VecMap(rs_position_emb_ + j * d, d);
+  }
+  // AdaLN: LayerNorm without affine, scaled by (1 + g(z)) and shifted by b(z).
+  auto adaln = [&](const Mat& in, const LinearParams& p) {
+    const Mat mod = linear(z, p);  // 1 x 2d: scale then shift
+    Mat y = layer_norm_plain(in);
+    const Vec scale_by = mod.row(0).head(d).array() + 1.0f;
+    const Vec shift_by = mod.row(0).tail(d);
+    y.array().rowwise() *= scale_by.array();
+    y.rowwise() += shift_by;
+    return y;
+  };
+  const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
+  for (const RsBlockParams& B : rs_blocks_) {
+    const Mat xn = adaln(x, B.adaln1);
+    const Mat q = linear(xn, B.query), k = linear(xn, B.key), v = linear(xn, B.value);
+    Mat o(n, d);
+    for (int h = 0; h < heads; ++h) {
+      for (int i = 0; i < n; ++i) {  // causal: position i reads 0..i
+        Vec s(i + 1);
+        for (int j = 0; j <= i; ++j) s[j] = q.row(i).segment(h * dh, dh).dot(k.row(j).segment(h * dh, dh)) * scale;
+        softmax_inplace(s.data(), i + 1);
+        o.row(i).segment(h * dh, dh) = s * v.block(0, h * dh, i + 1, dh);
+      }
+    }
+    x += linear(o, B.output);
+    Mat f = linear(adaln(x, B.adaln2), B.ffn1);
+    relu_inplace(f);
+    x += linear(f, B.ffn2);
+  }
+  const Mat last = adaln(x.bottomRows(1), rs_final_adaln_);
+  return linear(last, rs_output_);
+}
+
+}  // namespace ss

@@ -1,0 +1,125 @@
+// The SceneStreamer model on the CPU: map encoder, decoder with a KV cache, and the heads.
+// A Model is immutable after creation and shared by every session (thread-safe for concurrent use).
+#pragma once
+
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "engine/map/segments.h"
+#include "engine/map/spatial_index.h"
+#include "engine/model/attention.h"
+#include "engine/model/config.h"
+#include "engine/model/kv_cache.h"
+#include "engine/model/linalg.h"
+#include "engine/model/mask.h"
+#include "engine/model/token.h"
+#include "engine/model/weights.h"
+
+namespace ss {
+
+// A map as the decoder sees it: segments, their index, the encoded map tokens and what every layer derives from
+// them. Built once per map and shared read-only by every session on it.
+struct MapContext {
+  std::vector<MapSegment> segments;  // nearest the focus first; the map token i is segment i
+  SegmentIndex index;
+  Mat tokens;                        // M x d: encoder output + map-id embedding
+  std::vector<Mat> cross_keys, cross_values;  // per decoder layer, M x d
+  Mat pointer_keys;                  // M x d: head.map_segment.key applied to the tokens
+
+  explicit MapContext(std::vector<MapSegment> s) : segments(std::move(s)), index(segments) {}
+  int size() const { return static_cast<int>(segments.size()); }
+  size_t bytes() const;
+};
+
+struct EncoderLayerParams {
+  NormParams attn_norm, ffn_norm;
+  AttentionParams attn;
+  LinearParams ffn1, ffn2;
+};
+
+struct DecoderLayerParams {
+  NormParams cross_norm, self_norm, ffn_norm;
+  AttentionParams cross, self;
+  LinearParams ffn1, ffn2;
+};
+
+struct MlpHeadParams {
+  NormParams norm1, norm2;
+  LinearParams fc1, fc2;
+};
+
+struct RsBlockParams {
+  LinearParams adaln1, adaln2;  // z -> (scale, shift), 2d outputs
+  LinearParams query, key, value, output;
+  LinearParams ffn1, ffn2;
+};
+
+class Model {
+ public:
+  static absl::StatusOr<std::shared_ptr<const Model>> create(Weights weights);
+
+  const ModelConfig& config() const { return weights_.config; }
+  const Weights& weights() const { return weights_; }
+
+  // Encodes a map (segments nearest the focus first, at most max_map_segments). FAILED_PRECONDITION when empty.
+  absl::StatusOr<std::shared_ptr<const MapContext>> encode_map(std::vector<MapSegment> segments) const;
+
+  // Incremental forward: runs `tokens` (new tokens of one session, in sequence order) through the decoder, reading
+  // and extending `cache`. Returns their final hidden states (n x d). Assigns each token's seq.
+  Mat decode(const MapContext& map, KvCache& cache, std::vector<DecoderToken>& tokens) const;
+  // Full recompute: the whole history at once with a fresh cache (to test and measure the incremental path).
+  Mat decode_full(const MapContext& map, std::vector<DecoderToken>& tokens) const;
+  KvCache new_cache() const;
+
+  // Heads, on decoder outputs (one row per token).
+  Mat light_logits(const Mat& h) const;         // n x 4: the light's state at the next step
+  Mat motion_logits(const Mat& h) const;        // n x 1089: the agent's next control
+  Mat agent_type_logits(const Mat& h) const;    // n x 3, read at SOA
+  Mat end_of_agents_logits(const Mat& h) const; // n x 2 (another agent, end), read at SOS and RS
+  Mat map_segment_logits(const Mat& h, const MapContext& map) const;  // n x M, read at TYPE
+  // Logits of relative-state field `prefix.size()` (0..7) given the earlier fields' bins, conditioned on `z`, the
+  // decoder output of the MS token (1 x d).
+  Vec relative_state_logits(const Mat& z, std::span<const int> prefix) const;
+
+  Mat embed(std::span<const DecoderToken> tokens) const;
+
+ private:
+  explicit Model(Weights w);
+  LinearParams lin(const std::string& name, bool bias = true) const;
+  NormParams norm(const std::string& name) const;
+  AttentionParams attn(const std::string& name) const;
+  MlpHeadParams mlp_head(const std::string& name) const;
+  Mat mlp_head_forward(const Mat& h, const MlpHeadParams& p) const;
+  // Which keys each new token reads in self-attention (indices into cache tokens followed by new tokens), with
+  // relation embeddings.
+  // Queries may share one QueryKeys (e.g. every query without a position reads the whole map the same way), so the
+  // result is the distinct key sets plus one pointer per query.
+  struct KeySets {
+    std::vector<std::unique_ptr<QueryKeys>> sets;
+    std::vector<const QueryKeys*> per_query;
+  };
+  KeySets self_keys(const KvCache& cache, std::span<const DecoderToken> tokens) const;
+  KeySets cross_keys(const MapContext& map, std::span<const DecoderToken> tokens) const;
+
+  Weights weights_;
+  NeighbourLimit limit_;
+  LinearParams poly_fc1_, poly_fc2_, poly_fc3_, poly_fc4_;
+  NormParams poly_norm1_, poly_norm2_, encoder_final_norm_, decoder_final_norm_;
+  RelationParams encoder_relation_, self_relation_, cross_relation_;
+  std::vector<EncoderLayerParams> encoder_layers_;
+  std::vector<DecoderLayerParams> decoder_layers_;
+  const float* map_id_embedding_ = nullptr;
+  const float *agent_type_emb_ = nullptr, *agent_slot_emb_ = nullptr, *light_slot_emb_ = nullptr,
+              *light_state_emb_ = nullptr, *motion_action_emb_ = nullptr, *special_emb_ = nullptr,
+              *intra_emb_ = nullptr;
+  LinearParams motion_state_fc1_, motion_state_fc2_, rs_embed_fc1_, rs_embed_fc2_;
+  MlpHeadParams light_head_, motion_head_;
+  LinearParams agent_type_head_, end_of_agents_head_, pointer_query_, pointer_key_;
+  const float *rs_input_emb_ = nullptr, *rs_position_emb_ = nullptr;
+  std::vector<RsBlockParams> rs_blocks_;
+  LinearParams rs_final_adaln_, rs_output_;
+};
+
+}  // namespace ss

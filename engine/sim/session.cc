@@ -1,0 +1,547 @@
+#include "engine/sim/session.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "engine/map/focus.h"
+#include "engine/sim/sampling.h"
+#include "engine/tokens/agent_state.h"
+#include "engine/tokens/fidelity.h"
+
+namespace ss {
+
+const char* session_mode_name(SessionMode m) {
+  switch (m) {
+    case SessionMode::motion: return "motion";
+    case SessionMode::full: return "full";
+    case SessionMode::densify: return "densify";
+  }
+  return "invalid";
+}
+
+namespace {
+
+constexpr int kRejectTries = 6;             // paper appendix D: resample an overlapping new agent at most 6 times
+constexpr double kMaxCoordinate = 1e7;      // metres: beyond any real map
+constexpr double kMaxStepDistance = 50.0;   // metres in one 0.5 s step (100 m/s): more is a teleport (StateForce)
+constexpr int kCentreToken = kMotionBins / 2 * kMotionBins + kMotionBins / 2;  // zero acceleration, zero yaw rate
+
+StepState state_from_kin(const KinematicState& k, const StepState& box) {
+  StepState s = box;
+  s.x = k.x;
+  s.y = k.y;
+  s.heading = k.heading;
+  s.vx = k.speed * std::cos(k.heading);
+  s.vy = k.speed * std::sin(k.heading);
+  s.valid = true;
+  return s;
+}
+
+Box box_of(const StepState& s) { return {{s.x, s.y, s.heading}, s.length, s.width}; }
+
+std::array<float, kRsFields> scaled_relative_state(const StateBins& bins) {
+  std::array<float, kRsFields> out{};
+  for (int f = 0; f < kRsFields; ++f) out[f] = 2.0f * bins[f] / (kRsBins - 1) - 1.0f;
+  return out;
+}
+
+}  // namespace
+
+int Session::effective_window() const {
+  const int w = model_->config().window_steps;
+  return options_.window_steps > 0 ? std::min(options_.window_steps, w) : w;
+}
+
+Vec2 Session::roi_centre() const {
+  for (const Agent& a : agents_)
+    if (a.controlled) return {a.state.x, a.state.y};
+  return scenario_focus(*scenario_);
+}
+
+int Session::anchor_segment(const StepState& s) const {
+  int seg = map_->index.nearest({s.x, s.y, s.heading});
+  if (seg < 0) seg = map_->index.nearest({s.x, s.y, s.heading}, 2 * kPi);  // no segment heads its way: any
+  return seg;
+}
+
+void Session::undo_to(int cache_size, size_t replay_size) {
+  cache_.truncate(cache_size);
+  replay_.resize(replay_size);
+  if (probe_)
+    while (!probe_->batches.empty() && probe_->batches.back().front().seq >= cache_.next_seq) {
+      probe_->batches.pop_back();
+      probe_->outputs.pop_back();
+    }
+}
+
+int Session::allocate_slot() {
+  const int window = effective_window();
+  // A retired agent's slot is reused only once its tokens have left the window, so no two agents alive in one
+  // window share an identity embedding.
+  for (auto it = released_slots_.begin(); it != released_slots_.end(); ++it)
+    if (step_ - it->second >= window) {
+      slot_used_[it->first] = false;
+      released_slots_.erase(it);
+      break;
+    }
+  for (size_t s = 0; s < slot_used_.size(); ++s) {
+    bool released = std::any_of(released_slots_.begin(), released_slots_.end(),
+                                [&](const auto& r) { return r.first == static_cast<int>(s); });
+    if (!slot_used_[s] && !released) {
+      slot_used_[s] = true;
+      return static_cast<int>(s);
+    }
+  }
+  return -1;
+}
+
+DecoderToken Session::light_token(const Light& l) const {
+  DecoderToken t;
+  t.kind = TokenKind::light;
+  t.step = step_;
+  t.object = light_object(static_cast<int>(&l - lights_.data()));
+  t.has_pose = true;
+  t.pose = l.pose;
+  t.light_slot = static_cast<int>(&l - lights_.data());
+  t.light_state = static_cast<int>(l.state);
+  t.map_id = l.map_id;
+  return t;
+}
+
+void Session::group_tokens(const Agent& a, int order, std::vector<DecoderToken>& out) const {
+  DecoderToken t;
+  t.step = step_;
+  t.object = a.id;
+  t.agent_slot = a.slot;
+  t.agent_type = a.type;
+  t.kind = TokenKind::soa;
+  t.intra_index = 4 * order;
+  out.push_back(t);
+  t.kind = TokenKind::type;
+  t.intra_index = 4 * order + 1;
+  out.push_back(t);
+  const int seg = anchor_segment(a.state);
+  StateBins bins{};
+  const RelativeState rel = relative_state(a.state, map_->segments[seg].pose);
+  for (int f = 0; f < kRsFields; ++f) bins[f] = state_bin(f, rel[f]);
+  t.kind = TokenKind::map_segment;
+  t.intra_index = 4 * order + 2;
+  t.has_pose = true;
+  t.pose = map_->segments[seg].pose;
+  t.map_id = seg;
+  out.push_back(t);
+  t.kind = TokenKind::relative_state;
+  t.intra_index = 4 * order + 3;
+  t.pose = {a.state.x, a.state.y, a.state.heading};
+  t.relative_state = scaled_relative_state(bins);
+  out.push_back(t);
+}
+
+DecoderToken Session::motion_token(const Agent& a) const {
+  DecoderToken t;
+  t.kind = TokenKind::motion;
+  t.step = step_;
+  t.object = a.id;
+  t.has_pose = true;
+  t.pose = {a.state.x, a.state.y, a.state.heading};
+  t.agent_slot = a.slot;
+  t.agent_type = a.type;
+  t.motion_action = a.last_motion;
+  const Vec2 v = rotate({a.state.vx, a.state.vy}, -a.state.heading);
+  t.motion_state = {static_cast<float>(v.x / 10), static_cast<float>(v.y / 10), static_cast<float>(a.state.length / 5),
+                    static_cast<float>(a.state.width / 2), static_cast<float>(a.state.height / 2)};
+  return t;
+}
+
+Mat Session::decode(std::vector<DecoderToken>& tokens) {
+  const int window = effective_window();
+  cache_.evict_before(tokens.front().step - window + 1);
+  Mat h = model_->decode(*map_, cache_, tokens);
+  replay_.push_back({tokens.front().step, tokens});
+  if (probe_) {
+    probe_->batches.push_back(tokens);
+    probe_->outputs.push_back(h);
+  }
+  return h;
+}
+
+void Session::trim_replay() {
+  // A token's keys at layer l depend on tokens up to l * (W - 1) steps older; keeping L * (W - 1) steps of batches
+  // lets restore() rebuild every cached key and value exactly.
+  const int keep_from = step_ - model_->config().decoder_layers * (effective_window() - 1);
+  size_t drop = 0;
+  while (drop < replay_.size() && replay_[drop].step < keep_from) ++drop;
+  replay_.erase(replay_.begin(), replay_.begin() + drop);
+}
+
+void Session::sample_motions(const Mat& h, const std::vector<int>& agent_rows) {
+  if (agent_rows.empty()) return;
+  Mat rows(agent_rows.size(), h.cols());
+  for (size_t i = 0; i < agent_rows.size(); ++i) rows.row(i) = h.row(agent_rows[i]);
+  const Mat logits = model_->motion_logits(rows);
+  for (size_t i = 0; i < agents_.size(); ++i) {
+    Agent& a = agents_[i];
+    a.next_motion = a.controlled ? -1
+                                 : sample_token({logits.row(i).data(), static_cast<size_t>(logits.cols())},
+                                                options_.temperature, options_.top_p, rng_);
+  }
+}
+
+bool Session::sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order,
+                           int64_t* new_id) {
+  const double t = options_.temperature;
+  if (static_cast<int>(agents_.size()) >= options_.max_agents) return false;
+  if (!force_continue) {
+    const Mat end = model_->end_of_agents_logits(h_last);
+    if (sample_token({end.data(), 2}, t, 1.0, rng_) == 1) return false;
+  }
+  const int slot = allocate_slot();
+  if (slot < 0) return false;
+  const int cache_before_soa = cache_.size();
+  const size_t replay_before_soa = replay_.size();
+
+  Agent a;
+  a.id = next_agent_id_;
+  a.slot = slot;
+  a.entered_step = step_;
+  std::vector<DecoderToken> tok;
+  DecoderToken soa;
+  soa.kind = TokenKind::soa;
+  soa.step = step_;
+  soa.object = a.id;
+  soa.agent_slot = slot;
+  soa.intra_index = 4 * order;
+  tok = {soa};
+  const Mat h_soa = decode(tok);
+  a.type = req && req->type ? *req->type
+                            : sample_token({model_->agent_type_logits(h_soa).data(), kAgentTypes}, t, 1.0, rng_);
+  DecoderToken type = soa;
+  type.kind = TokenKind::type;
+  type.agent_type = a.type;
+  type.intra_index = 4 * order + 1;
+  tok = {type};
+  const Mat h_type = decode(tok);
+
+  StateBins bins{};
+  int seg = -1;
+  if (req && req->state) {
+    a.state = *req->state;
+    a.state.valid = true;
+    seg = anchor_segment(a.state);
+    const RelativeState rel = relative_state(a.state, map_->segments[seg].pose);
+    for (int f = 0; f < kRsFields; ++f) bins[f] = state_bin(f, rel[f]);
+    DecoderToken ms = type;
+    ms.kind = TokenKind::map_segment;
+    ms.intra_index = 4 * order + 2;
+    ms.has_pose = true;
+    ms.pose = map_->segments[seg].pose;
+    ms.map_id = seg;
+    tok = {ms};
+    decode(tok);
+  } else {
+    // Where a new agent may appear: within the region of interest, and where the request says.
+    Mat pointer = model_->map_segment_logits(h_type, *map_);
+    const Vec2 centre = roi_centre();
+    bool any = false;
+    for (int j = 0; j < map_->size(); ++j) {
+      const Vec2 p{map_->segments[j].pose.x, map_->segments[j].pose.y};
+      bool ok = distance(p, centre) <= options_.roi_radius;
+      if (req && req->near) ok = ok && distance(p, *req->near) <= req->near_radius;
+      if (req && req->segment) ok = j == *req->segment;
+      if (!ok) pointer(0, j) = -INFINITY;
+      any = any || ok;
+    }
+    if (!any) {
+      undo_to(cache_before_soa, replay_before_soa);
+      slot_used_[slot] = false;
+      return false;
+    }
+    bool placed = false;
+    for (int attempt = 0; attempt < kRejectTries && !placed; ++attempt) {
+      const int cache_before_ms = cache_.size();
+      const size_t replay_before_ms = replay_.size();
+      seg = sample_token({pointer.data(), static_cast<size_t>(pointer.cols())}, t, 1.0, rng_);
+      DecoderToken ms = type;
+      ms.kind = TokenKind::map_segment;
+      ms.intra_index = 4 * order + 2;
+      ms.has_pose = true;
+      ms.pose = map_->segments[seg].pose;
+      ms.map_id = seg;
+      tok = {ms};
+      const Mat h_ms = decode(tok);
+      std::vector<int> prefix;
+      for (int f = 0; f < kRsFields; ++f) {
+        const Vec logits = model_->relative_state_logits(h_ms, prefix);
+        prefix.push_back(sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, 1.0, rng_));
+      }
+      std::copy(prefix.begin(), prefix.end(), bins.begin());
+      RelativeState rel;
+      for (int f = 0; f < kRsFields; ++f) rel[f] = state_bin_value(f, bins[f]);
+      a.state = global_state(rel, map_->segments[seg].pose);
+      placed = std::none_of(agents_.begin(), agents_.end(),
+                            [&](const Agent& o) { return boxes_overlap(box_of(o.state), box_of(a.state)); });
+      if (!placed) undo_to(cache_before_ms, replay_before_ms);
+    }
+    if (!placed) {
+      undo_to(cache_before_soa, replay_before_soa);
+      slot_used_[slot] = false;
+      return false;
+    }
+  }
+  DecoderToken rs = type;
+  rs.kind = TokenKind::relative_state;
+  rs.intra_index = 4 * order + 3;
+  rs.has_pose = true;
+  rs.pose = {a.state.x, a.state.y, a.state.heading};
+  rs.map_id = seg;
+  rs.relative_state = scaled_relative_state(bins);
+  tok = {rs};
+  const Mat h_rs = decode(tok);
+  a.kin = kinematic_state(a.state);
+  a.last_motion = kMotionStart;
+  agents_.push_back(a);
+  entered_.push_back(a.id);
+  ++next_agent_id_;
+  *new_id = a.id;
+  last_group_output_ = h_rs;
+  return true;
+}
+
+absl::Status Session::decode_step(bool sample_lights, bool allow_new, int force_new,
+                                  const std::vector<InjectRequest>& inject, std::vector<int64_t>* injected) {
+  // Batch 1: the lights and the agent-state group of the agents already present (state-forced).
+  std::vector<DecoderToken> tokens;
+  for (const Light& l : lights_) tokens.push_back(light_token(l));
+  const int num_lights = static_cast<int>(tokens.size());
+  DecoderToken sos;
+  sos.kind = TokenKind::sos;
+  sos.step = step_;
+  tokens.push_back(sos);
+  for (size_t i = 0; i < agents_.size(); ++i) group_tokens(agents_[i], static_cast<int>(i), tokens);
+  const Mat h = decode(tokens);
+  if (sample_lights) sample_light_states(h.topRows(num_lights));
+  last_group_output_ = h.bottomRows(1);
+  // Then new agents, one token at a time; then batch 2, EOS and every agent's motion token.
+  if (auto st = add_agents(allow_new, force_new, inject, injected); !st.ok()) return st;
+  finish_step();
+  return absl::OkStatus();
+}
+
+absl::Status Session::add_agents(bool allow_new, int force_new, const std::vector<InjectRequest>& inject,
+                                 std::vector<int64_t>* injected) {
+  for (const InjectRequest& req : inject) {
+    const int count = req.state ? 1 : req.count;
+    for (int n = 0; n < count; ++n) {
+      int64_t id = 0;
+      if (!sample_agent(last_group_output_, true, &req, static_cast<int>(agents_.size()), &id))
+        return absl::ResourceExhaustedError(absl::StrCat(
+            "could not place injected agent ", n + 1, " of ", count, ": the agent cap (", options_.max_agents,
+            ") is reached, or no free place was found within the region after ", kRejectTries, " tries"));
+      if (injected) injected->push_back(id);
+    }
+  }
+  for (int n = 0; n < force_new; ++n) {
+    int64_t id = 0;
+    if (!sample_agent(last_group_output_, true, nullptr, static_cast<int>(agents_.size()), &id)) break;
+  }
+  while (allow_new) {
+    int64_t id = 0;
+    if (!sample_agent(last_group_output_, false, nullptr, static_cast<int>(agents_.size()), &id)) break;
+  }
+  return absl::OkStatus();
+}
+
+void Session::finish_step() {
+  eos_cache_size_ = cache_.size();
+  std::vector<DecoderToken> tokens;
+  DecoderToken eos;
+  eos.kind = TokenKind::eos;
+  eos.step = step_;
+  tokens.push_back(eos);
+  std::vector<int> motion_rows;
+  for (const Agent& a : agents_) {
+    motion_rows.push_back(static_cast<int>(tokens.size()));
+    tokens.push_back(motion_token(a));
+  }
+  const Mat h = decode(tokens);
+  sample_motions(h, motion_rows);
+}
+
+void Session::sample_light_states(const Mat& h) {
+  if (h.rows() == 0) return;
+  const Mat logits = model_->light_logits(h);
+  for (size_t k = 0; k < lights_.size(); ++k)
+    lights_[k].next_state = static_cast<LightState>(
+        sample_token({logits.row(k).data(), kLightStates}, options_.temperature, 1.0, rng_));
+}
+
+}  // namespace ss
+
+namespace ss {
+
+absl::Status Session::check_state(const StepState& s, const std::string& what) const {
+  const double fields[] = {s.x, s.y, s.heading, s.vx, s.vy, s.length, s.width, s.height};
+  for (double f : fields)
+    if (!std::isfinite(f)) return absl::InvalidArgumentError(absl::StrCat(what, " has a non-finite value"));
+  if (std::abs(s.x) > kMaxCoordinate || std::abs(s.y) > kMaxCoordinate)
+    return absl::InvalidArgumentError(absl::StrCat(what, " lies beyond ", kMaxCoordinate, " m"));
+  if (s.length <= 0 || s.width <= 0 || s.height <= 0 || s.length > 30 || s.width > 10 || s.height > 10)
+    return absl::InvalidArgumentError(absl::StrCat(what, " has an implausible box ", s.length, " x ", s.width, " x ",
+                                                   s.height, " m"));
+  if (std::hypot(s.vx, s.vy) > 100) return absl::InvalidArgumentError(absl::StrCat(what, " moves faster than 100 m/s"));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& controls) {
+  // Check everything first: a bad input leaves the session as it was.
+  std::map<int64_t, const ControlInput*> by_id;
+  for (const ControlInput& c : controls) {
+    const std::string what = absl::StrCat("control for agent ", c.agent_id);
+    auto it = std::find_if(agents_.begin(), agents_.end(), [&](const Agent& a) { return a.id == c.agent_id; });
+    if (it == agents_.end()) return absl::InvalidArgumentError(absl::StrCat(what, ": no such agent in the session"));
+    if (!it->controlled) return absl::InvalidArgumentError(absl::StrCat(what, ": the agent is not a controlled agent"));
+    if (!by_id.emplace(c.agent_id, &c).second) return absl::InvalidArgumentError(absl::StrCat(what, ": given twice"));
+    if (!std::isfinite(c.x) || !std::isfinite(c.y) || !std::isfinite(c.heading) || (c.speed && !std::isfinite(*c.speed)))
+      return absl::InvalidArgumentError(absl::StrCat(what, ": pose has a non-finite value"));
+    const double jump = std::hypot(c.x - it->state.x, c.y - it->state.y);
+    if (jump > kMaxStepDistance)
+      return absl::InvalidArgumentError(absl::StrCat(what, ": pose is ", jump, " m from the last one; at most ",
+                                                     kMaxStepDistance, " m per 0.5 s step (use StateForce to teleport)"));
+    if (c.speed && std::abs(*c.speed) > 100) return absl::InvalidArgumentError(absl::StrCat(what, ": speed above 100 m/s"));
+  }
+
+  left_.clear();
+  for (Agent& a : agents_) {
+    if (a.forced) {
+      a.state = *a.forced;
+      a.kin = kinematic_state(a.state);
+      a.last_motion = kMotionStart;  // a teleport: the agent starts afresh where it was put
+      a.forced.reset();
+    } else if (auto it = by_id.find(a.id); it != by_id.end()) {
+      const ControlInput& c = *it->second;
+      const MotionFit fit = fit_motion_token(a.kin, {c.x, c.y, wrap_angle(c.heading)}, a.state.length, a.state.width);
+      a.last_motion = fit.token;
+      a.kin = {c.x, c.y, wrap_angle(c.heading), c.speed ? *c.speed : fit.state.speed};
+      a.state = state_from_kin(a.kin, a.state);
+    } else {
+      // A controlled agent without a pose keeps its last control; others take the sampled one.
+      int token = a.controlled ? a.last_motion : a.next_motion;
+      if (token < 0 || token == kMotionStart) token = kCentreToken;
+      a.last_motion = token;
+      a.kin = apply_motion_token(a.kin, token);
+      a.state = state_from_kin(a.kin, a.state);
+    }
+  }
+  for (Light& l : lights_) {
+    l.state = l.forced ? *l.forced : l.next_state;
+    l.forced.reset();
+  }
+  ++step_;
+  entered_.clear();
+  // Agents that left the region of interest retire; their slots are recycled once out of the window.
+  const Vec2 centre = roi_centre();
+  for (auto it = agents_.begin(); it != agents_.end();) {
+    if (!it->controlled && distance({it->state.x, it->state.y}, centre) > options_.roi_radius) {
+      left_.push_back(it->id);
+      released_slots_.push_back({it->slot, step_});
+      it = agents_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  trim_replay();
+  if (auto st = decode_step(true, options_.mode != SessionMode::motion, 0, {}, nullptr); !st.ok()) return st;
+  return current();
+}
+
+absl::StatusOr<std::vector<int64_t>> Session::inject(const InjectRequest& req) {
+  if (req.state) {
+    if (req.count != 0 && req.count != 1)
+      return absl::InvalidArgumentError("inject: give either a count or a state, not both");
+    if (auto st = check_state(*req.state, "inject: state"); !st.ok()) return st;
+  } else if (req.count < 1 || req.count > model_->config().agent_slots) {
+    return absl::InvalidArgumentError(absl::StrCat("inject: count ", req.count, " is outside 1..",
+                                                   model_->config().agent_slots));
+  }
+  if (req.type && (*req.type < 0 || *req.type >= kAgentTypes))
+    return absl::InvalidArgumentError(absl::StrCat("inject: type ", *req.type, " is not 0 (vehicle), 1 (pedestrian) or 2 (cyclist)"));
+  if (req.near && (!std::isfinite(req.near->x) || !std::isfinite(req.near->y) || !(req.near_radius > 0)))
+    return absl::InvalidArgumentError("inject: near point or radius is not a finite positive value");
+  if (req.segment && (*req.segment < 0 || *req.segment >= map_->size()))
+    return absl::InvalidArgumentError(absl::StrCat("inject: segment ", *req.segment, " is outside the map's ",
+                                                   map_->size(), " segments"));
+  const int count = req.state ? 1 : req.count;
+  if (static_cast<int>(agents_.size()) + count > options_.max_agents)
+    return absl::ResourceExhaustedError(absl::StrCat("inject: ", count, " more agents would exceed the cap of ",
+                                                     options_.max_agents, " (", agents_.size(), " alive)"));
+
+  // Undo the step's EOS and motion batch, add the agents to the group, and decode EOS and motion again.
+  Session backup(*this);
+  undo_to(eos_cache_size_, replay_.size() - 1);
+  std::vector<int64_t> ids;
+  if (auto st = add_agents(false, 0, {req}, &ids); !st.ok()) {
+    *this = std::move(backup);
+    undo_to(cache_.size(), replay_.size());  // drops the failed attempt's batches from a test probe
+    return st;
+  }
+  finish_step();
+  return ids;
+}
+
+absl::Status Session::state_force(const StateForceRequest& req) {
+  std::set<int64_t> seen_agents, seen_lights;
+  for (const auto& entry : req.agents) {
+    const int64_t id = entry.first;
+    const StepState& s = entry.second;
+    if (std::none_of(agents_.begin(), agents_.end(), [&](const Agent& a) { return a.id == id; }))
+      return absl::InvalidArgumentError(absl::StrCat("state force: no agent ", id, " in the session"));
+    if (!seen_agents.insert(id).second) return absl::InvalidArgumentError(absl::StrCat("state force: agent ", id, " given twice"));
+    if (auto st = check_state(s, absl::StrCat("state force: agent ", id)); !st.ok()) return st;
+  }
+  for (const auto& entry : req.lights) {
+    const int64_t lane = entry.first;
+    const LightState state = entry.second;
+    if (std::none_of(lights_.begin(), lights_.end(), [&](const Light& l) { return l.lane == lane; }))
+      return absl::InvalidArgumentError(absl::StrCat("state force: no light on lane ", lane));
+    if (static_cast<int>(state) < 0 || static_cast<int>(state) >= kLightStates)
+      return absl::InvalidArgumentError(absl::StrCat("state force: light state ", static_cast<int>(state), " is not 0..3"));
+    if (!seen_lights.insert(lane).second) return absl::InvalidArgumentError(absl::StrCat("state force: lane ", lane, " given twice"));
+  }
+  for (const auto& [id, s] : req.agents)
+    for (Agent& a : agents_)
+      if (a.id == id) {
+        a.forced = s;
+        a.forced->valid = true;
+      }
+  for (const auto& [lane, state] : req.lights)
+    for (Light& l : lights_)
+      if (l.lane == lane) l.forced = state;
+  return absl::OkStatus();
+}
+
+std::unique_ptr<Session> Session::fork() const {
+  auto copy = std::unique_ptr<Session>(new Session(*this));
+  copy->probe_ = nullptr;
+  return copy;
+}
+
+StepResult Session::current() const {
+  StepResult r;
+  r.step = step_;
+  r.time = step_ * kStepSeconds;
+  for (const Agent& a : agents_) r.agents.push_back({a.id, a.type, a.state, a.controlled, a.entered_step == step_});
+  for (const Light& l : lights_) r.lights.push_back({l.lane, l.state, l.pose});
+  r.left = left_;
+  return r;
+}
+
+size_t Session::memory_bytes() const {
+  size_t b = sizeof(*this) + cache_.bytes() + agents_.capacity() * sizeof(Agent) + lights_.capacity() * sizeof(Light);
+  for (const Batch& batch : replay_) b += sizeof(Batch) + batch.tokens.capacity() * sizeof(DecoderToken);
+  return b;
+}
+
+}  // namespace ss

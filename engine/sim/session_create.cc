@@ -1,0 +1,186 @@
+// Starting a session from a scenario: the log's history up to the current step is teacher-forced, then the model
+// samples what the mode leaves open.
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "engine/map/focus.h"
+#include "engine/sim/session.h"
+#include "engine/tokens/fidelity.h"
+
+namespace ss {
+namespace {
+
+absl::Status check_options(const SessionOptions& o, const ModelConfig& c) {
+  const int mode = static_cast<int>(o.mode);
+  if (mode < 0 || mode > 2) return absl::InvalidArgumentError(absl::StrCat("options.mode ", mode, " is not motion, full or densify"));
+  if (!(o.temperature > 0) || !std::isfinite(o.temperature))
+    return absl::InvalidArgumentError(absl::StrCat("options.temperature ", o.temperature, " must be positive"));
+  if (!(o.top_p > 0 && o.top_p <= 1)) return absl::InvalidArgumentError(absl::StrCat("options.top_p ", o.top_p, " must be in (0, 1]"));
+  if (o.max_agents < 1 || o.max_agents > c.agent_slots)
+    return absl::InvalidArgumentError(absl::StrCat("options.max_agents ", o.max_agents, " is outside 1..", c.agent_slots));
+  if (!(o.roi_radius > 0) || !std::isfinite(o.roi_radius))
+    return absl::InvalidArgumentError(absl::StrCat("options.roi_radius ", o.roi_radius, " must be positive"));
+  if (o.window_steps != 0 && (o.window_steps < 2 || o.window_steps > c.window_steps))
+    return absl::InvalidArgumentError(absl::StrCat("options.window_steps ", o.window_steps, " is outside 2..", c.window_steps,
+                                                   " (0: the model's)"));
+  if (o.densify_target < 0 || o.densify_target > o.max_agents)
+    return absl::InvalidArgumentError(absl::StrCat("options.densify_target ", o.densify_target, " is outside 0..max_agents"));
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const Model> model,
+                                                         std::shared_ptr<const Scenario> scenario,
+                                                         std::shared_ptr<const MapContext> map, SessionOptions options,
+                                                         Probe* probe) {
+  if (auto st = check_options(options, model->config()); !st.ok()) return st;
+  if (!map || map->size() == 0) return absl::FailedPreconditionError("the scenario's map has no segments");
+  const int now_frame = scenario->current_time_index;
+  const int t0 = now_frame / kFramesPerStep;
+
+  auto s = std::unique_ptr<Session>(new Session());
+  s->model_ = std::move(model);
+  s->scenario_ = scenario;
+  s->map_ = std::move(map);
+  s->options_ = options;
+  s->probe_ = probe;
+  s->rng_ = Rng(options.seed);
+  s->cache_ = s->model_->new_cache();
+  s->slot_used_.assign(s->model_->config().agent_slots, false);
+  for (const Track& t : scenario->tracks) s->next_agent_id_ = std::max<int64_t>(s->next_agent_id_, t.id + 1);
+
+  // Controlled agents: the caller's, or the SDC.
+  std::vector<int32_t> controlled = options.controlled_ids;
+  if (controlled.empty() && scenario->sdc_track_index >= 0 &&
+      scenario->tracks[scenario->sdc_track_index].states[now_frame].valid)
+    controlled.push_back(scenario->tracks[scenario->sdc_track_index].id);
+  auto track_index = [&](int32_t id) {
+    for (size_t i = 0; i < scenario->tracks.size(); ++i)
+      if (scenario->tracks[i].id == id) return static_cast<int>(i);
+    return -1;
+  };
+  std::vector<int> chosen;
+  for (int32_t id : controlled) {
+    const int i = track_index(id);
+    if (i < 0) return absl::InvalidArgumentError(absl::StrCat("controlled agent ", id, ": no such track in scenario ", scenario->id));
+    if (model_type(scenario->tracks[i].type) < 0)
+      return absl::InvalidArgumentError(absl::StrCat("controlled agent ", id, ": type ", object_type_name(scenario->tracks[i].type),
+                                                     " is not a vehicle, pedestrian or cyclist"));
+    if (!scenario->tracks[i].states[now_frame].valid)
+      return absl::InvalidArgumentError(absl::StrCat("controlled agent ", id, ": not valid at the current frame ", now_frame));
+    if (std::find(chosen.begin(), chosen.end(), i) != chosen.end())
+      return absl::InvalidArgumentError(absl::StrCat("controlled agent ", id, ": listed twice"));
+    chosen.push_back(i);
+  }
+  const size_t num_controlled = chosen.size();
+  if (static_cast<int>(num_controlled) > options.max_agents)
+    return absl::InvalidArgumentError("more controlled agents than options.max_agents");
+
+  // Log agents: the SDC's neighbours first (tracks to predict, then by distance), within the region of interest.
+  const Vec2 centre = num_controlled > 0
+                          ? Vec2{scenario->tracks[chosen[0]].states[now_frame].x, scenario->tracks[chosen[0]].states[now_frame].y}
+                          : scenario_focus(*scenario);
+  if (options.mode != SessionMode::full) {
+    std::vector<std::pair<double, int>> rest;
+    for (size_t i = 0; i < scenario->tracks.size(); ++i) {
+      const Track& t = scenario->tracks[i];
+      if (model_type(t.type) < 0 || !t.states[now_frame].valid) continue;
+      if (std::find(chosen.begin(), chosen.end(), static_cast<int>(i)) != chosen.end()) continue;
+      const double d = distance({t.states[now_frame].x, t.states[now_frame].y}, centre);
+      if (d > options.roi_radius) continue;
+      const bool predicted = std::any_of(scenario->tracks_to_predict.begin(), scenario->tracks_to_predict.end(),
+                                         [&](const RequiredPrediction& r) { return r.track_index == static_cast<int>(i); });
+      rest.push_back({predicted ? -1.0 : d, static_cast<int>(i)});
+    }
+    std::stable_sort(rest.begin(), rest.end());
+    for (const auto& [d, i] : rest)
+      if (static_cast<int>(chosen.size()) < options.max_agents) chosen.push_back(i);
+  }
+
+  // Each chosen agent joins at the start of its last unbroken run of valid steps up to t0.
+  struct LogAgent {
+    int track = 0;
+    int first_step = 0;
+    std::vector<StepState> steps;
+    MotionTrack motion;
+  };
+  std::vector<LogAgent> log;
+  for (int i : chosen) {
+    LogAgent la;
+    la.track = i;
+    la.steps = downsample_track(scenario->tracks[i]);
+    la.motion = tokenize_motion(la.steps);
+    la.first_step = t0;
+    while (la.first_step > 0 && la.steps[la.first_step - 1].valid) --la.first_step;
+    log.push_back(std::move(la));
+  }
+  std::vector<int> order(log.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return log[a].first_step < log[b].first_step; });
+
+  // Lights: the lanes with a signal state at the current frame, by lane id, anchored on their lane's segment.
+  if (now_frame < static_cast<int>(scenario->signals.size())) {
+    std::vector<SignalLaneState> now = scenario->signals[now_frame];
+    std::sort(now.begin(), now.end(), [](const auto& a, const auto& b) { return a.lane < b.lane; });
+    for (const SignalLaneState& ls : now) {
+      if (static_cast<int>(s->lights_.size()) >= s->model_->config().light_slots) break;
+      Light l;
+      l.lane = ls.lane;
+      const Vec2 stop{ls.stop_point.x, ls.stop_point.y};
+      int best = -1;
+      double best_d = INFINITY;
+      for (int j = 0; j < s->map_->size(); ++j) {
+        const MapSegment& seg = s->map_->segments[j];
+        const double d = distance(stop, {seg.pose.x, seg.pose.y});
+        if (seg.kind == MapFeatureKind::lane && seg.feature_id == ls.lane && d < best_d) best = j, best_d = d;
+      }
+      if (best < 0) best = s->map_->index.nearest({stop.x, stop.y, 0}, 2 * kPi);
+      l.map_id = best;
+      l.pose = {stop.x, stop.y, s->map_->segments[best].pose.heading};
+      s->lights_.push_back(l);
+    }
+  }
+  auto log_light_state = [&](int64_t lane, int step) {
+    const int frame = step * kFramesPerStep;
+    if (frame < static_cast<int>(scenario->signals.size()))
+      for (const SignalLaneState& ls : scenario->signals[frame])
+        if (ls.lane == lane) return light_state_from_womd(ls.state);
+    return LightState::unknown;
+  };
+
+  // The history, teacher-forced; the model samples from the current step on.
+  for (int step = 0; step <= t0; ++step) {
+    s->step_ = step;
+    s->entered_.clear();
+    for (int k : order) {
+      const LogAgent& la = log[k];
+      if (la.first_step != step) continue;
+      Agent a;
+      a.id = scenario->tracks[la.track].id;
+      a.type = model_type(scenario->tracks[la.track].type);
+      a.slot = s->allocate_slot();
+      a.controlled = static_cast<size_t>(&la - log.data()) < num_controlled;
+      a.entered_step = step;
+      s->agents_.push_back(a);
+    }
+    for (Agent& a : s->agents_) {
+      const LogAgent& la = *std::find_if(log.begin(), log.end(), [&](const LogAgent& l) { return scenario->tracks[l.track].id == a.id; });
+      a.state = la.steps[step];
+      a.kin = kinematic_state(a.state);
+      a.last_motion = la.motion.tokens[step];
+    }
+    for (Light& l : s->lights_) l.state = log_light_state(l.lane, step);
+    s->trim_replay();
+    const bool now = step == t0;
+    const bool sample_new = now && options.mode == SessionMode::full;
+    const int force_new = now && options.mode == SessionMode::densify
+                              ? std::max(0, options.densify_target - static_cast<int>(s->agents_.size()))
+                              : 0;
+    if (auto st = s->decode_step(now, sample_new, force_new, {}, nullptr); !st.ok()) return st;
+  }
+  return s;
+}
+
+}  // namespace ss
