@@ -13,6 +13,7 @@ constexpr const char* kUsage =
     "  inspect FILE... [--json]            what a scenario file holds and how faithfully the tokenizers encode it\n"
     "  convert IN... --out FILE.tfrecord   scenarios (GPUDrive JSON or WOMD TFRecord) into one WOMD TFRecord\n"
     "  init-weights --config C --out FILE  random model weights (safetensors; C small|large; --seed S)\n"
+    "  render FILE [--step T|--animate]    a scenario or rollout as an SVG picture (map, lights, agents)\n"
     "\n"
     "Run `scenestreamer <command> --help` for a command's arguments.\n";
 
@@ -27,6 +28,7 @@ int main(int argc, char** argv) {
   if (!std::strcmp(cmd, "inspect")) return ss::cli::inspect_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "convert")) return ss::cli::convert_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "init-weights")) return ss::cli::init_weights_main(argc - 1, argv + 1);
+  if (!std::strcmp(cmd, "render")) return ss::cli::render_main(argc - 1, argv + 1);
   std::fprintf(stderr, "scenestreamer: unknown command '%s'\n\n%s", cmd, kUsage);
   return 2;
 }
