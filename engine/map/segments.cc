@@ -14,8 +14,10 @@ double vector_length(const MapPoint& a, const MapPoint& b) {
   return std::sqrt(dx * dx + dy * dy + dz * dz);
 }
 
-// A vector has a heading only when it moves on the ground plane.
-bool has_heading(const MapPoint& a, const MapPoint& b) { return b.x != a.x || b.y != a.y; }
+// A vector has a heading only when it moves on the ground plane by more than a micrometre: the direction between two
+// copies of one surveyed point differing by rounding (1e-13 m) is noise, and it would swing a segment's heading.
+constexpr double kMinHeadingLength = 1e-6;
+bool has_heading(const MapPoint& a, const MapPoint& b) { return std::hypot(b.x - a.x, b.y - a.y) > kMinHeadingLength; }
 
 std::array<float, kNumMapTypeFlags> type_flags(const MapFeature& f) {
   std::array<float, kNumMapTypeFlags> t{};
@@ -54,7 +56,8 @@ std::array<float, kNumMapTypeFlags> type_flags(const MapFeature& f) {
 void finish_segment(MapSegment& s) {
   const int n = s.num_vectors();
   double sx = 0, sy = 0, sz = 0, hs = 0, hc = 0, len = 0;
-  bool any_heading = false;
+  int headed = 0;
+  double longest = -1, longest_heading = 0;
   for (int i = 0; i < n; ++i) {
     const MapPoint& a = s.points[i];
     const MapPoint& b = s.points[i + 1];
@@ -66,15 +69,24 @@ void finish_segment(MapSegment& s) {
       double h = std::atan2(b.y - a.y, b.x - a.x);
       hs += std::sin(h);
       hc += std::cos(h);
-      any_heading = true;
+      ++headed;
+      // The first of the longest edges (lengths equal within a micrometre count as equal, so rounding cannot flip it).
+      const double l = std::hypot(b.x - a.x, b.y - a.y);
+      if (l > longest + kMinHeadingLength) longest = l, longest_heading = h;
     }
   }
   s.pose.x = sx / n;
   s.pose.y = sy / n;
   s.z = sz / n;
   s.length = len;
-  // All vectors zero-length: every heading is atan2(0, 0) = 0, so their mean is 0 as well.
-  s.pose.heading = any_heading ? std::atan2(hs, hc) : 0.0;
+  // All vectors zero-length: heading 0. Directions that (nearly) cancel, as a closed polygon's edges do, have no
+  // meaningful mean (atan2 of rounding noise): such a segment points along its longest edge.
+  if (headed == 0)
+    s.pose.heading = 0.0;
+  else if (std::hypot(hs, hc) < 1e-3 * headed)
+    s.pose.heading = longest_heading;
+  else
+    s.pose.heading = std::atan2(hs, hc);
 }
 
 MapSegment new_segment(const MapFeature& f, int feature_index, int first_point,
@@ -199,6 +211,9 @@ SegmentFeatures segment_point_features(const MapSegment& segment) {
     Vec2 d = rotate({b.x - a.x, b.y - a.y}, -frame.heading);
     // A zero-length vector (a stop sign, a repeated point) has no direction of its own: it points along its segment.
     double h = has_heading(a, b) ? wrap_angle(std::atan2(b.y - a.y, b.x - a.x) - frame.heading) : 0.0;
+    // An edge pointing straight back (a polygon's far side) sits on the +-pi seam, where rounding would flip the raw
+    // heading feature from +pi to -pi: snap the seam to -pi.
+    if (h > kPi - 1e-9) h = -kPi;
     float* row = f.data() + i * kPointFeatureDim;
     const double values[13] = {s.x, s.y, sz, e.x, e.y, ez, d.x, d.y, b.z - a.z,
                                h,   std::sin(h), std::cos(h), vector_length(a, b)};

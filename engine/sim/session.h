@@ -113,6 +113,7 @@ class Session {
   int step_index() const { return step_; }
   size_t memory_bytes() const;
   size_t cache_tokens() const { return cache_.tokens.size(); }
+  const KvCache& cache() const { return cache_; }
 
   // For tests: every decoder batch (unbounded memory). Batches undone by a rejected sample are removed.
   struct Probe {

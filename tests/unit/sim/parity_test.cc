@@ -62,3 +62,37 @@ TEST(Parity, IncrementalMatchesFullRecomputeOver19Steps) {
 
 }  // namespace
 }  // namespace ss
+
+namespace ss {
+namespace {
+
+Scenario shifted(Scenario s, double dx, double dy) {
+  for (Track& t : s.tracks)
+    for (ObjectState& st : t.states)
+      if (st.valid) st.x += dx, st.y += dy;
+  for (MapFeature& f : s.map_features)
+    for (MapPoint& p : f.points) p.x += dx, p.y += dy;
+  for (auto& frame : s.signals)
+    for (SignalLaneState& l : frame) l.stop_point.x += dx, l.stop_point.y += dy;
+  return s;
+}
+
+TEST(Parity, DecoderIsTranslationInvariant) {
+  testing::World w = testing::load_world("small");
+  testing::World moved = w;
+  moved.scenario = std::make_shared<const Scenario>(shifted(*w.scenario, 1234.5, -2345.25));
+  moved.map = *w.model->encode_map(nearest_segments(segment_map(*moved.scenario), scenario_focus(*moved.scenario)));
+  EXPECT_LT((w.map->tokens - moved.map->tokens).cwiseAbs().maxCoeff(), 1e-4);
+  SessionOptions o;
+  Session::Probe a, b;
+  ASSERT_TRUE(Session::create(w.model, w.scenario, w.map, o, &a).ok());
+  ASSERT_TRUE(Session::create(moved.model, moved.scenario, moved.map, o, &b).ok());
+  ASSERT_EQ(a.outputs.size(), b.outputs.size());
+  double max_diff = 0;
+  for (size_t i = 0; i < a.outputs.size(); ++i)
+    max_diff = std::max<double>(max_diff, (a.outputs[i] - b.outputs[i]).cwiseAbs().maxCoeff());
+  EXPECT_LT(max_diff, 1e-4);
+}
+
+}  // namespace
+}  // namespace ss

@@ -1,0 +1,377 @@
+#include "engine/sim/session.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <set>
+#include <thread>
+
+#include "engine/tokens/fidelity.h"
+#include "tests/unit/sim/session_fixture.h"
+
+namespace ss {
+namespace {
+
+using testing::load_world;
+using testing::same_result;
+using testing::sdc_control;
+using testing::start;
+
+class SessionTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { world_ = new testing::World(load_world("small")); }
+  static void TearDownTestSuite() { delete world_; }
+  static const testing::World& w() { return *world_; }
+  static testing::World* world_;
+};
+testing::World* SessionTest::world_ = nullptr;
+
+std::vector<StepResult> roll(Session& s, const testing::World& w, int steps) {
+  std::vector<StepResult> out;
+  for (int i = 0; i < steps; ++i) {
+    auto r = s.step({sdc_control(w, s.step_index() + 1)});
+    EXPECT_TRUE(r.ok()) << r.status();
+    if (!r.ok()) break;
+    out.push_back(*r);
+  }
+  return out;
+}
+
+bool same_rollout(const std::vector<StepResult>& a, const std::vector<StepResult>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (!same_result(a[i], b[i])) return false;
+  return true;
+}
+
+TEST_F(SessionTest, MotionModeStartsFromTheLogAtTheCurrentStep) {
+  SessionOptions o;
+  auto s = start(w(), o);
+  ASSERT_TRUE(s);
+  const StepResult r = s->current();
+  EXPECT_EQ(r.step, 2);
+  EXPECT_DOUBLE_EQ(r.time, 1.0);
+  // Every modelled log agent valid at frame 10 within the region, the SDC controlled.
+  int expected = 0;
+  const Track& sdc = w().scenario->tracks[w().scenario->sdc_track_index];
+  for (const Track& t : w().scenario->tracks)
+    if (model_type(t.type) >= 0 && t.states[10].valid &&
+        std::hypot(t.states[10].x - sdc.states[10].x, t.states[10].y - sdc.states[10].y) <= o.roi_radius)
+      ++expected;
+  EXPECT_EQ(static_cast<int>(r.agents.size()), expected);
+  int controlled = 0;
+  for (const AgentView& a : r.agents) {
+    if (a.controlled) {
+      ++controlled;
+      EXPECT_EQ(a.id, sdc.id);
+      EXPECT_NEAR(a.state.x, sdc.states[10].x, 1e-6);
+    }
+  }
+  EXPECT_EQ(controlled, 1);
+  EXPECT_FALSE(r.lights.empty());
+}
+
+TEST_F(SessionTest, MotionModeFollowsControlsAndAddsNoAgents) {
+  auto s = start(w(), {});
+  const size_t initial = s->current().agents.size();
+  std::set<int64_t> ids;
+  for (const AgentView& a : s->current().agents) ids.insert(a.id);
+  for (const StepResult& r : roll(*s, w(), 10)) {
+    for (const AgentView& a : r.agents) {
+      EXPECT_TRUE(ids.count(a.id)) << "motion mode must not add agents";
+      if (a.controlled) {
+        const ControlInput c = sdc_control(w(), r.step);
+        EXPECT_NEAR(a.state.x, c.x, 1e-9);
+        EXPECT_NEAR(a.state.y, c.y, 1e-9);
+      }
+    }
+    EXPECT_LE(r.agents.size(), initial);
+  }
+}
+
+TEST_F(SessionTest, SameSeedSameRolloutOtherSeedAnother) {
+  for (SessionMode mode : {SessionMode::motion, SessionMode::full}) {
+    SessionOptions o;
+    o.mode = mode;
+    o.seed = 5;
+    auto a = start(w(), o), b = start(w(), o);
+    o.seed = 6;
+    auto c = start(w(), o);
+    const auto ra = roll(*a, w(), 6), rb = roll(*b, w(), 6), rc = roll(*c, w(), 6);
+    EXPECT_TRUE(same_rollout(ra, rb)) << session_mode_name(mode);
+    EXPECT_FALSE(same_rollout(ra, rc)) << session_mode_name(mode);
+  }
+}
+
+TEST_F(SessionTest, SameRolloutWhateverTheThreadCount) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  o.seed = 9;
+  auto alone = start(w(), o);
+  const auto reference = roll(*alone, w(), 5);
+  // Four sessions stepped on four threads at once give the reference rollout, bit for bit.
+  std::vector<std::vector<StepResult>> results(4);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      auto s = start(w(), o);
+      results[t] = roll(*s, w(), 5);
+    });
+  for (auto& t : threads) t.join();
+  for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
+}
+
+TEST_F(SessionTest, FullModeGeneratesItsOwnAgents) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  o.seed = 3;
+  auto s = start(w(), o);
+  const StepResult r = s->current();
+  ASSERT_GE(r.agents.size(), 1u);
+  EXPECT_TRUE(r.agents[0].controlled);
+  const int64_t max_log_id = [&] {
+    int64_t m = 0;
+    for (const Track& t : w().scenario->tracks) m = std::max<int64_t>(m, t.id);
+    return m;
+  }();
+  for (size_t i = 1; i < r.agents.size(); ++i) {
+    EXPECT_GT(r.agents[i].id, max_log_id) << "generated agents get fresh ids";
+    EXPECT_TRUE(r.agents[i].entered);
+    EXPECT_LE(std::hypot(r.agents[i].state.x - r.agents[0].state.x, r.agents[i].state.y - r.agents[0].state.y),
+              o.roi_radius + 20);  // spawned on a segment within the region (segment centre + offset)
+  }
+}
+
+TEST_F(SessionTest, DensifyReachesItsTarget) {
+  SessionOptions o;
+  o.mode = SessionMode::densify;
+  o.roi_radius = 60;
+  auto base = start(w(), o);
+  const int log_agents = static_cast<int>(base->current().agents.size());
+  o.densify_target = log_agents + 5;
+  auto s = start(w(), o);
+  EXPECT_EQ(static_cast<int>(s->current().agents.size()), o.densify_target);
+}
+
+TEST_F(SessionTest, InjectSampledAgentsOfATypeNearAPoint) {
+  auto s = start(w(), {});
+  const AgentView ego = s->current().agents[0];
+  InjectRequest req;
+  req.count = 3;
+  req.type = 1;
+  req.near = Vec2{ego.state.x, ego.state.y};
+  req.near_radius = 30;
+  auto ids = s->inject(req);
+  ASSERT_TRUE(ids.ok()) << ids.status();
+  ASSERT_EQ(ids->size(), 3u);
+  const StepResult r = s->current();
+  for (int64_t id : *ids) {
+    auto it = std::find_if(r.agents.begin(), r.agents.end(), [&](const AgentView& a) { return a.id == id; });
+    ASSERT_NE(it, r.agents.end());
+    EXPECT_EQ(it->type, 1);
+    EXPECT_TRUE(it->entered);
+    EXPECT_LT(std::hypot(it->state.x - ego.state.x, it->state.y - ego.state.y), 30 + 15);
+  }
+  // The injected agents move on with everyone else.
+  auto next = s->step({sdc_control(w(), 3)});
+  ASSERT_TRUE(next.ok());
+  for (int64_t id : *ids)
+    EXPECT_TRUE(std::any_of(next->agents.begin(), next->agents.end(), [&](const AgentView& a) { return a.id == id; }) ||
+                std::count(next->left.begin(), next->left.end(), id));
+}
+
+TEST_F(SessionTest, InjectAnExactState) {
+  auto s = start(w(), {});
+  const AgentView ego = s->current().agents[0];
+  StepState st{ego.state.x + 30, ego.state.y - 30, 0.5, 3, 1, 4.5, 2, 1.6, true};
+  InjectRequest req;
+  req.state = st;
+  req.type = 2;
+  auto ids = s->inject(req);
+  ASSERT_TRUE(ids.ok()) << ids.status();
+  const StepResult r = s->current();
+  auto it = std::find_if(r.agents.begin(), r.agents.end(), [&](const AgentView& a) { return a.id == ids->at(0); });
+  ASSERT_NE(it, r.agents.end());
+  EXPECT_EQ(it->state, st);
+  EXPECT_EQ(it->type, 2);
+}
+
+TEST_F(SessionTest, InjectRejectsBadRequestsAndLeavesTheSessionAsItWas) {
+  auto s = start(w(), {});
+  const std::string before = s->save();
+  InjectRequest bad_type;
+  bad_type.count = 1;
+  bad_type.type = 3;
+  EXPECT_EQ(s->inject(bad_type).status().code(), absl::StatusCode::kInvalidArgument);
+  InjectRequest nan_state;
+  nan_state.state = StepState{std::numeric_limits<double>::quiet_NaN(), 0, 0, 0, 0, 4, 2, 1.5, true};
+  EXPECT_EQ(s->inject(nan_state).status().code(), absl::StatusCode::kInvalidArgument);
+  InjectRequest zero;
+  EXPECT_EQ(s->inject(zero).status().code(), absl::StatusCode::kInvalidArgument);
+  InjectRequest far;
+  far.count = 1;
+  far.near = Vec2{1e6, 1e6};  // no segment within the region there
+  EXPECT_EQ(s->inject(far).status().code(), absl::StatusCode::kResourceExhausted);
+  InjectRequest too_many;
+  too_many.count = 128;
+  EXPECT_EQ(s->inject(too_many).status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(s->save(), before);
+}
+
+TEST_F(SessionTest, StateForceTeleportsAgentsAndSetsLights) {
+  auto s = start(w(), {});
+  const StepResult r0 = s->current();
+  const AgentView other = r0.agents[1];
+  StepState target = other.state;
+  target.x += 5;
+  target.y -= 3;
+  StateForceRequest req;
+  req.agents = {{other.id, target}};
+  const LightState forced = r0.lights[0].state == LightState::red ? LightState::green : LightState::red;
+  req.lights = {{r0.lights[0].lane, forced}};
+  ASSERT_TRUE(s->state_force(req).ok());
+  auto r1 = s->step({sdc_control(w(), 3)});
+  ASSERT_TRUE(r1.ok());
+  auto it = std::find_if(r1->agents.begin(), r1->agents.end(), [&](const AgentView& a) { return a.id == other.id; });
+  ASSERT_NE(it, r1->agents.end());
+  EXPECT_EQ(it->state, target);
+  EXPECT_EQ(r1->lights[0].state, forced);
+
+  const std::string before = s->save();
+  StateForceRequest unknown;
+  unknown.agents = {{999999, target}};
+  EXPECT_EQ(s->state_force(unknown).code(), absl::StatusCode::kInvalidArgument);
+  StateForceRequest bad_lane;
+  bad_lane.lights = {{-42, LightState::red}};
+  EXPECT_EQ(s->state_force(bad_lane).code(), absl::StatusCode::kInvalidArgument);
+  StateForceRequest nan;
+  target.heading = std::numeric_limits<double>::infinity();
+  nan.agents = {{other.id, target}};
+  EXPECT_EQ(s->state_force(nan).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(s->save(), before);
+}
+
+TEST_F(SessionTest, BadControlsAreRefusedAndChangeNothing) {
+  auto s = start(w(), {});
+  const std::string before = s->save();
+  ControlInput c = sdc_control(w(), 3);
+  ControlInput nan = c;
+  nan.x = std::numeric_limits<double>::quiet_NaN();
+  ControlInput jump = c;
+  jump.x += 500;
+  ControlInput unknown = c;
+  unknown.agent_id = 123456789;
+  ControlInput not_controlled = c;
+  not_controlled.agent_id = s->current().agents[1].id;
+  for (const ControlInput& bad : {nan, jump, unknown, not_controlled}) {
+    auto r = s->step({bad});
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_FALSE(r.status().message().empty());
+  }
+  EXPECT_EQ(s->step({c, c}).status().code(), absl::StatusCode::kInvalidArgument);  // twice
+  EXPECT_EQ(s->save(), before);
+  EXPECT_TRUE(s->step({c}).ok());
+}
+
+TEST_F(SessionTest, ForkCopiesEverythingThenEvolvesIndependently) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  auto s = start(w(), o);
+  roll(*s, w(), 2);
+  auto copy = s->fork();
+  // Same inputs: the copy continues exactly as the original (cache and RNG copied).
+  const auto a = roll(*s, w(), 4);
+  const auto b = roll(*copy, w(), 4);
+  EXPECT_TRUE(same_rollout(a, b));
+  // Stepping one does not move the other.
+  const int step = copy->step_index();
+  roll(*s, w(), 2);
+  EXPECT_EQ(copy->step_index(), step);
+  // Different inputs: different futures.
+  StateForceRequest teleport;
+  StepState st = copy->current().agents[0].state;
+  st.x += 20;
+  teleport.agents = {{copy->current().agents[0].id, st}};
+  ASSERT_TRUE(copy->state_force(teleport).ok());
+  EXPECT_NE(copy->step({}).value().agents[0].state.x, s->current().agents[0].state.x);
+}
+
+TEST_F(SessionTest, SaveRestoreContinuesIdentically) {
+  for (SessionMode mode : {SessionMode::motion, SessionMode::full}) {
+    SessionOptions o;
+    o.mode = mode;
+    o.seed = 21;
+    o.roi_radius = 60;
+    auto s = start(w(), o);
+    roll(*s, w(), 24);  // well past L * (W - 1) steps, so the saved batches are a suffix of the history
+    const std::string bytes = s->save();
+    auto restored = Session::restore(w().model, w().scenario, w().map, bytes);
+    ASSERT_TRUE(restored.ok()) << restored.status();
+    EXPECT_EQ((*restored)->save(), bytes);
+    EXPECT_TRUE(same_result(s->current(), (*restored)->current()));
+    const auto a = roll(*s, w(), 8);
+    const auto b = roll(**restored, w(), 8);
+    EXPECT_TRUE(same_rollout(a, b)) << session_mode_name(mode);
+    std::printf("%s: snapshot of %zu bytes at step 26\n", session_mode_name(mode), bytes.size());
+  }
+}
+
+TEST_F(SessionTest, RestoreRefusesCorruptBytes) {
+  auto s = start(w(), {});
+  roll(*s, w(), 3);
+  const std::string bytes = s->save();
+  EXPECT_FALSE(Session::restore(w().model, w().scenario, w().map, "nonsense").ok());
+  EXPECT_FALSE(Session::restore(w().model, w().scenario, w().map, bytes.substr(0, bytes.size() / 2)).ok());
+  for (size_t i = 8; i < bytes.size(); i += bytes.size() / 16) {
+    std::string b = bytes;
+    b[i] = static_cast<char>(b[i] ^ 0x5A);
+    auto r = Session::restore(w().model, w().scenario, w().map, b);  // must not crash; may or may not be accepted
+    (void)r;
+  }
+  Scenario other = *w().scenario;
+  other.id = "another";
+  auto r = Session::restore(w().model, std::make_shared<const Scenario>(other), w().map, bytes);
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("another"), std::string::npos);
+}
+
+TEST_F(SessionTest, CacheKeepsOnlyTheWindow) {
+  SessionOptions o;
+  o.window_steps = 4;
+  auto s = start(w(), o);
+  size_t memory_at_8 = 0;
+  for (int i = 0; i < 40; ++i) {
+    ASSERT_TRUE(s->step({}).ok());
+    // Every cached token belongs to the last 4 steps.
+    for (const DecoderToken& t : s->cache().tokens) ASSERT_GT(t.step, s->step_index() - 4);
+    if (i == 8) memory_at_8 = s->memory_bytes();
+  }
+  EXPECT_LE(s->memory_bytes(), memory_at_8 * 11 / 10) << "memory must stay flat once the window is full";
+}
+
+TEST_F(SessionTest, OptionsAreChecked) {
+  auto bad = [&](auto change) {
+    SessionOptions o;
+    change(o);
+    auto s = Session::create(w().model, w().scenario, w().map, o);
+    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+    return std::string(s.status().message());
+  };
+  EXPECT_NE(bad([](SessionOptions& o) { o.top_p = 0; }).find("top_p"), std::string::npos);
+  EXPECT_NE(bad([](SessionOptions& o) { o.temperature = -1; }).find("temperature"), std::string::npos);
+  EXPECT_NE(bad([](SessionOptions& o) { o.max_agents = 500; }).find("max_agents"), std::string::npos);
+  EXPECT_NE(bad([](SessionOptions& o) { o.controlled_ids = {987654}; }).find("987654"), std::string::npos);
+  EXPECT_NE(bad([](SessionOptions& o) { o.mode = static_cast<SessionMode>(7); }).find("mode"), std::string::npos);
+  EXPECT_NE(bad([](SessionOptions& o) { o.window_steps = 1; }).find("window_steps"), std::string::npos);
+}
+
+TEST(SessionMap, AnEmptyMapIsRefused) {
+  auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
+  ASSERT_TRUE(model.ok());
+  auto map = (*model)->encode_map({});
+  EXPECT_EQ(map.status().code(), absl::StatusCode::kFailedPrecondition);
+}
+
+}  // namespace
+}  // namespace ss
