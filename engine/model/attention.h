@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -24,11 +25,16 @@ struct RelationParams {
   LinearParams fc1, fc2;
 };
 
-// A query's or key's place in space and time.
+// A query's or key's place in space and time (with the heading's cosine and sine, computed once per token).
 struct Anchor {
   bool has_pose = false;
   Pose pose;
   int step = 0;
+  double cos_h = 1, sin_h = 0;
+
+  Anchor() = default;
+  Anchor(bool has, const Pose& p, int t)
+      : has_pose(has), pose(p), step(t), cos_h(std::cos(p.heading)), sin_h(std::sin(p.heading)) {}
 };
 
 using RelationFeatures = std::array<float, kRelationFeatures>;
@@ -43,11 +49,14 @@ Mat relation_embedding(const Mat& features, const RelationParams& p);
 // The keys one query reads: rows of the key/value matrices and their relation embeddings (one row per key).
 struct QueryKeys {
   std::vector<int> keys;
-  Mat relation;  // keys.size() x relation_dim
+  Mat relation;          // keys.size() x relation_dim
+  bool uniform = false;  // every row of `relation` is the same (queries without a position): the relation term is
+                         // then one constant per query and head, which the softmax cancels, and is skipped
 };
 
 // Attention for a batch of queries. `x`: the queries' normalised inputs (n x d). `k`, `v`: projected keys and values
-// of every key the queries may name. Returns the output projection (n x d).
+// of every key the queries may name. Queries that share one QueryKeys are computed together with matrix products.
+// Returns the output projection (n x d).
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
                        std::span<const QueryKeys* const> query_keys);
 

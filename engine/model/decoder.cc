@@ -67,7 +67,7 @@ Mat Model::embed(std::span<const DecoderToken> tokens) const {
 
 namespace {
 
-Anchor anchor_of(const DecoderToken& t) { return {t.has_pose, t.pose, t.step}; }
+Anchor anchor_of(const DecoderToken& t) { return Anchor(t.has_pose, t.pose, t.step); }
 
 // Where to look for the keys a query may read, so that candidates are not found by scanning the whole cache.
 struct TokenIndex {
@@ -97,7 +97,11 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   const int window = config().window_steps;
   auto token = [&](int j) -> const DecoderToken& { return j < c ? cache.tokens[j] : tokens[j - c]; };
   TokenIndex index;
-  for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) index.add(token(j), j);
+  std::vector<Anchor> anchors;
+  for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) {
+    index.add(token(j), j);
+    anchors.push_back(anchor_of(token(j)));
+  }
 
   KeySets out;
   std::vector<int> candidates, keys, spatial;
@@ -146,7 +150,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     set->keys = keys;
     Mat f(keys.size(), kRelationFeatures);
     for (size_t j = 0; j < keys.size(); ++j) {
-      const RelationFeatures rf = relation_features(anchor_of(q), anchor_of(token(keys[j])));
+      const RelationFeatures rf = relation_features(anchors[c + i], anchors[keys[j]]);
       f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
     }
     set->relation = relation_embedding(f, self_relation_);
@@ -186,13 +190,15 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
       std::sort(set->keys.begin(), set->keys.end());
     }
     // Map tokens are static: their step is the query's, so the step difference is 0.
+    const Anchor qa(q.has_pose, q.pose, 0);  // map anchors carry step 0: the step difference is 0
     Mat f(set->keys.size(), kRelationFeatures);
     for (size_t j = 0; j < set->keys.size(); ++j) {
       const RelationFeatures rf =
-          relation_features(anchor_of(q), {true, map.segments[set->keys[j]].pose, q.step});
+          relation_features(qa, map.anchors[set->keys[j]]);
       f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
     }
     set->relation = relation_embedding(f, cross_relation_);
+    set->uniform = !q.has_pose;  // no position: every map key has the same relation
     if (!q.has_pose) whole_map = set.get();
     else by_pose[{q.pose.x, q.pose.y, q.pose.heading}] = set.get();
     out.per_query.push_back(set.get());

@@ -162,7 +162,7 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
     std::sort(keys[i].keys.begin(), keys[i].keys.end());
     f.resize(keys[i].keys.size(), kRelationFeatures);
     for (size_t j = 0; j < keys[i].keys.size(); ++j) {
-      const RelationFeatures rf = relation_features({true, p, 0}, {true, map->segments[keys[i].keys[j]].pose, 0});
+      const RelationFeatures rf = relation_features(Anchor(true, p, 0), Anchor(true, map->segments[keys[i].keys[j]].pose, 0));
       f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
     }
     keys[i].relation = relation_embedding(f, encoder_relation_);
@@ -181,6 +181,7 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
     map->cross_values.push_back(linear(map->tokens, L.cross.value));
   }
   map->pointer_keys = linear(map->tokens, pointer_key_);
+  for (const MapSegment& seg : map->segments) map->anchors.emplace_back(true, seg.pose, 0);
   return std::shared_ptr<const MapContext>(std::move(map));
 }
 

@@ -27,6 +27,7 @@ struct MapContext {
   Mat tokens;                        // M x d: encoder output + map-id embedding
   std::vector<Mat> cross_keys, cross_values;  // per decoder layer, M x d
   Mat pointer_keys;                  // M x d: head.map_segment.key applied to the tokens
+  std::vector<Anchor> anchors;       // each segment's pose as a relation anchor (step 0)
 
   explicit MapContext(std::vector<MapSegment> s) : segments(std::move(s)), index(segments) {}
   int size() const { return static_cast<int>(segments.size()); }

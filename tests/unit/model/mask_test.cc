@@ -92,13 +92,12 @@ TEST(Neighbours, NearestWithinRadiusKeepsTheClosestEight) {
 }
 
 TEST(Relations, TranslationAndRotationInvariant) {
-  const Anchor q{true, {10, 20, 0.3}, 5}, k{true, {13, 24, -0.2}, 3};
+  const Anchor q(true, {10, 20, 0.3}, 5), k(true, {13, 24, -0.2}, 3);
   const RelationFeatures f = relation_features(q, k);
   for (const auto& [dx, dy, rot] : {std::tuple{1000.0, -500.0, 0.0}, std::tuple{-3.0, 7.0, 1.2}}) {
     auto move = [&](Anchor a) {
       Vec2 p = rotate({a.pose.x, a.pose.y}, rot) + Vec2{dx, dy};
-      a.pose = {p.x, p.y, a.pose.heading + rot};
-      return a;
+      return Anchor(a.has_pose, {p.x, p.y, a.pose.heading + rot}, a.step);
     };
     const RelationFeatures g = relation_features(move(q), move(k));
     for (int i = 0; i < kRelationFeatures; ++i) EXPECT_NEAR(f[i], g[i], 1e-5) << i;
@@ -106,7 +105,7 @@ TEST(Relations, TranslationAndRotationInvariant) {
   EXPECT_NEAR(f[2], 0.5f, 1e-6);        // 5 m away, in units of 10 m
   EXPECT_NEAR(f[5], 2.0f / 5, 1e-6);    // 2 steps
   EXPECT_EQ(f[6], 1.0f);
-  const RelationFeatures none = relation_features({false, {}, 5}, k);
+  const RelationFeatures none = relation_features(Anchor(false, {}, 5), k);
   EXPECT_EQ(none[0], 0.0f);
   EXPECT_EQ(none[6], 0.0f);
   EXPECT_NEAR(none[5], 0.4f, 1e-6);
