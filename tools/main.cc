@@ -12,6 +12,8 @@ constexpr const char* kUsage =
     "commands:\n"
     "  inspect FILE... [--json]            what a scenario file holds and how faithfully the tokenizers encode it\n"
     "  convert IN... --out FILE.tfrecord   scenarios (GPUDrive JSON or WOMD TFRecord) into one WOMD TFRecord\n"
+    "  simulate --scenario F --model W --out F   roll a scenario out with the model; writes a 10 Hz WOMD TFRecord\n"
+    "  bench [--json]                      step latency, cached vs full recompute, session memory\n"
     "  init-weights --config C --out FILE  random model weights (safetensors; C small|large; --seed S)\n"
     "  render FILE [--step T|--animate]    a scenario or rollout as an SVG picture (map, lights, agents)\n"
     "\n"
@@ -27,6 +29,8 @@ int main(int argc, char** argv) {
   const char* cmd = argv[1];
   if (!std::strcmp(cmd, "inspect")) return ss::cli::inspect_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "convert")) return ss::cli::convert_main(argc - 1, argv + 1);
+  if (!std::strcmp(cmd, "simulate")) return ss::cli::simulate_main(argc - 1, argv + 1);
+  if (!std::strcmp(cmd, "bench")) return ss::cli::bench_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "init-weights")) return ss::cli::init_weights_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "render")) return ss::cli::render_main(argc - 1, argv + 1);
   std::fprintf(stderr, "scenestreamer: unknown command '%s'\n\n%s", cmd, kUsage);

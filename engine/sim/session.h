@@ -31,6 +31,7 @@ struct SessionOptions {
   double roi_radius = 100.0;   // metres around the first controlled agent: agents beyond it retire, new ones spawn within
   int window_steps = 0;        // history window W in steps; 0: the model's window (at most the model's)
   std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
+  bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too
   int densify_target = 0;      // densify: agents to reach at the first step
   bool operator==(const SessionOptions&) const = default;
 };

@@ -53,7 +53,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
 
   // Controlled agents: the caller's, or the SDC.
   std::vector<int32_t> controlled = options.controlled_ids;
-  if (controlled.empty() && scenario->sdc_track_index >= 0 &&
+  if (controlled.empty() && options.control_sdc && scenario->sdc_track_index >= 0 &&
       scenario->tracks[scenario->sdc_track_index].states[now_frame].valid)
     controlled.push_back(scenario->tracks[scenario->sdc_track_index].id);
   auto track_index = [&](int32_t id) {

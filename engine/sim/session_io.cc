@@ -113,6 +113,7 @@ std::string Session::save() const {
   w.pod<uint64_t>(options_.controlled_ids.size());
   for (int32_t id : options_.controlled_ids) w.pod(id);
   w.pod<int32_t>(options_.densify_target);
+  w.pod<uint8_t>(options_.control_sdc);
 
   w.pod(rng_.s);
   w.pod<int32_t>(step_);
@@ -204,6 +205,9 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   o.controlled_ids.resize(n);
   for (int32_t& id : o.controlled_ids) r.pod(id);
   r.pod(o.densify_target);
+  uint8_t control_sdc = 1;
+  r.pod(control_sdc);
+  o.control_sdc = control_sdc;
   if (!r.ok()) return bad("truncated options");
   if (mode < 0 || mode > 2 || !(o.temperature > 0) || !(o.top_p > 0 && o.top_p <= 1) || o.max_agents < 1 ||
       o.max_agents > c.agent_slots || !(o.roi_radius > 0) || o.window_steps < 0 || o.window_steps > c.window_steps)

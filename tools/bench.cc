@@ -1,0 +1,132 @@
+// scenestreamer bench [--json] [--model W] [--scenario FILE] [--long-steps N]
+// The engine's speed and memory figures, measured in one run: step latency by agent count, the incremental decoder
+// against a full recompute at step 19, session memory after a long rollout, KV bytes per token.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "bench/bench_world.h"
+#include "engine/model/linalg.h"
+#include "nlohmann/json.hpp"
+#include "tools/cli_args.h"
+#include "tools/commands.h"
+
+namespace ss::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+double percentile(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  const double pos = p * (v.size() - 1);
+  const size_t lo = static_cast<size_t>(pos);
+  return lo + 1 < v.size() ? v[lo] + (pos - lo) * (v[lo + 1] - v[lo]) : v[lo];
+}
+
+int fail(const absl::Status& st) {
+  std::fprintf(stderr, "bench: %s\n", std::string(st.message()).c_str());
+  return 1;
+}
+
+}  // namespace
+
+int bench_main(int argc, char** argv) {
+  auto args = parse_args(argc, argv, 1, {"model", "scenario", "long-steps", "steps"}, {"json", "help"});
+  if (!args.ok() || args->has("help") || !args->positional.empty()) {
+    if (!args.ok()) std::fprintf(stderr, "bench: %s\n", std::string(args.status().message()).c_str());
+    std::fputs("usage: scenestreamer bench [--json] [--model large|small|WEIGHTS] [--scenario FILE]\n"
+               "                           [--steps N (timed per agent count, default 30)] [--long-steps N (default 1000)]\n",
+               args.ok() && args->has("help") ? stdout : stderr);
+    return args.ok() && args->has("help") ? 0 : 2;
+  }
+  int steps = 30, long_steps = 1000;
+  if (args->has("steps") && (!absl::SimpleAtoi(args->get("steps"), &steps) || steps < 1)) return 2;
+  if (args->has("long-steps") && (!absl::SimpleAtoi(args->get("long-steps"), &long_steps) || long_steps < 1)) return 2;
+  enable_flush_to_zero();
+  auto world = make_bench_world(args->get("scenario", kBenchScenario), args->get("model", "large"));
+  if (!world.ok()) return fail(world.status());
+  const ModelConfig& c = world->model->config();
+  nlohmann::ordered_json out;
+  out["model"] = c.name;
+  out["threads"] = 1;
+  out["lights"] = world->scenario->signals.empty() ? 0 : world->scenario->signals[world->scenario->current_time_index].size();
+  out["map_segments"] = world->map->size();
+
+  // Step latency, after the cache window has filled.
+  nlohmann::ordered_json p50, p99;
+  for (int agents : {16, 32, 64, 128}) {
+    auto s = bench_session(*world, agents, 1);
+    if (!s.ok()) return fail(s.status());
+    for (int i = 0; i < c.window_steps; ++i)
+      if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
+    std::vector<double> ms;
+    for (int i = 0; i < steps; ++i) {
+      const auto t0 = Clock::now();
+      if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
+      ms.push_back(ms_since(t0));
+    }
+    p50[std::to_string(agents)] = percentile(ms, 0.5);
+    p99[std::to_string(agents)] = percentile(ms, 0.99);
+    if (!args->has("json"))
+      std::printf("step, %3d agents: p50 %.1f ms, p99 %.1f ms\n", agents, percentile(ms, 0.5), percentile(ms, 0.99));
+  }
+  out["step_ms_p50"] = p50;
+  out["step_ms_p99"] = p99;
+
+  // Step 19 of a 64-agent rollout: its new tokens over the cache, against the whole history recomputed.
+  auto h = history_batches(*world, 64, 19);
+  if (!h.ok()) return fail(h.status());
+  std::vector<double> inc, full;
+  for (int rep = 0; rep < 5; ++rep) {
+    KvCache cache = world->model->new_cache();
+    std::vector<DecoderToken> all;
+    for (auto b : h->before) {
+      all.insert(all.end(), b.begin(), b.end());
+      world->model->decode(*world->map, cache, b);
+    }
+    auto t0 = Clock::now();
+    for (auto b : h->at) {
+      all.insert(all.end(), b.begin(), b.end());
+      world->model->decode(*world->map, cache, b);
+    }
+    inc.push_back(ms_since(t0));
+    t0 = Clock::now();
+    world->model->decode_full(*world->map, all);
+    full.push_back(ms_since(t0));
+  }
+  const double inc_ms = percentile(inc, 0.5), full_ms = percentile(full, 0.5);
+  out["step19_incremental_ms"] = inc_ms;
+  out["step19_full_recompute_ms"] = full_ms;
+  out["cached_vs_full_ratio"] = full_ms / inc_ms;
+  if (!args->has("json"))
+    std::printf("step 19, 64 agents: incremental %.1f ms, full recompute %.1f ms: %.1fx\n", inc_ms, full_ms, full_ms / inc_ms);
+
+  // Memory of a 64-agent session over a long rollout: flat once the window is full.
+  auto s = bench_session(*world, 64, 2);
+  if (!s.ok()) return fail(s.status());
+  size_t after_window = 0;
+  for (int i = 0; i < long_steps; ++i) {
+    if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
+    if (i + 1 == 2 * c.window_steps) after_window = (*s)->memory_bytes();
+  }
+  out["session_bytes_after_window"] = after_window;
+  out[absl::StrCat("session_bytes_after_", long_steps, "_steps")] = (*s)->memory_bytes();
+  if (long_steps != 1000) out["session_bytes_after_1000_steps"] = nullptr;  // not measured in this run
+  out["session_cache_tokens"] = (*s)->cache_tokens();
+  out["kv_bytes_per_token"] = 2 * c.decoder_layers * c.d_model * sizeof(float);
+  out["map_bytes_shared"] = world->map->bytes();
+  if (args->has("json")) {
+    std::puts(out.dump(2).c_str());
+  } else {
+    std::printf("64-agent session: %zu bytes after %d steps, %zu after %d steps (%zu cached tokens)\n", after_window,
+                2 * c.window_steps, (*s)->memory_bytes(), long_steps, (*s)->cache_tokens());
+    std::printf("KV bytes per token: %d; shared map encoding: %zu bytes\n", out["kv_bytes_per_token"].get<int>(),
+                world->map->bytes());
+  }
+  return 0;
+}
+
+}  // namespace ss::cli
