@@ -1,0 +1,77 @@
+#include "engine/eval/aggregate.h"
+
+#include <cmath>
+#include <functional>
+#include <limits>
+
+namespace ss {
+
+DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
+  DatasetEvaluation d;
+  d.scenarios = static_cast<int>(scenarios.size());
+  auto mean = [&](const std::string& key, const std::function<double(const ScenarioEvaluation&)>& get) {
+    double sum = 0;
+    int n = 0;
+    for (const ScenarioEvaluation& s : scenarios) {
+      const double v = get(s);
+      if (std::isfinite(v)) sum += v, ++n;
+      else ++d.undefined[key];
+    }
+    return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
+  };
+  for (int f = 0; f < kNumRealismFeatures; ++f)
+    d.realism.likelihood[f] = mean(std::string(wosac_2025_config()[f].name) + "_likelihood",
+                                   [f](const ScenarioEvaluation& s) { return s.realism.likelihood[f]; });
+  d.realism.meta = mean("realism_meta", [](const auto& s) { return s.realism.meta; });
+  d.realism.kinematic = bucket_score(RealismBucket::kinematic, d.realism.likelihood);
+  d.realism.interactive = bucket_score(RealismBucket::interactive, d.realism.likelihood);
+  d.realism.map = bucket_score(RealismBucket::map, d.realism.likelihood);
+  d.realism.collision_rate = mean("collision_rate", [](const auto& s) { return s.realism.collision_rate; });
+  d.realism.offroad_rate = mean("offroad_rate", [](const auto& s) { return s.realism.offroad_rate; });
+  d.realism.ade = mean("ade", [](const auto& s) { return s.realism.ade; });
+  d.realism.min_ade = mean("min_ade", [](const auto& s) { return s.realism.min_ade; });
+
+  auto motion = [&](const std::string& prefix, MotionMetrics ScenarioEvaluation::*group) {
+    MotionMetrics m;
+    m.ade_avg = mean(prefix + "ade_avg", [&](const auto& s) { return (s.*group).ade_avg; });
+    m.ade_min = mean(prefix + "ade_min", [&](const auto& s) { return (s.*group).ade_min; });
+    m.fde_avg = mean(prefix + "fde_avg", [&](const auto& s) { return (s.*group).fde_avg; });
+    m.fde_min = mean(prefix + "fde_min", [&](const auto& s) { return (s.*group).fde_min; });
+    m.add = mean(prefix + "add", [&](const auto& s) { return (s.*group).add; });
+    m.fdd = mean(prefix + "fdd", [&](const auto& s) { return (s.*group).fdd; });
+    for (const ScenarioEvaluation& s : scenarios) m.agents += (s.*group).agents;
+    return m;
+  };
+  d.motion_all = motion("", &ScenarioEvaluation::motion_all);
+  d.motion_predict = motion("tracks_to_predict.", &ScenarioEvaluation::motion_predict);
+
+  for (const ScenarioEvaluation& s : scenarios) {
+    d.named_scenarios += s.named_by_scenario;
+    d.evaluated_objects += s.evaluated;
+    d.has_mmd = d.has_mmd || s.has_mmd;
+    d.to_match += s.to_match, d.matched += s.matched;
+    d.match_distance += s.match_distance * s.matched;
+    for (int f = 0; f < kNumRealismFeatures; ++f) {
+      auto& h = d.histograms[f];
+      const auto& src = s.histograms[f];
+      if (src.log.empty()) continue;
+      h.log.resize(src.log.size(), 0.0), h.sim.resize(src.sim.size(), 0.0);
+      for (size_t b = 0; b < src.log.size(); ++b) h.log[b] += src.log[b], h.sim[b] += src.sim[b];
+    }
+  }
+  d.match_distance = d.matched ? d.match_distance / d.matched : 0.0;
+  d.filled_share = mean("filled_share", [](const auto& s) { return s.filled_share; });
+  if (d.has_mmd) {
+    auto mmd = [&](const std::string& prefix, InitialStateMmd ScenarioEvaluation::*set) {
+      return InitialStateMmd{mean(prefix + "position", [&](const auto& s) { return (s.*set).position; }),
+                             mean(prefix + "heading", [&](const auto& s) { return (s.*set).heading; }),
+                             mean(prefix + "size", [&](const auto& s) { return (s.*set).size; }),
+                             mean(prefix + "velocity", [&](const auto& s) { return (s.*set).velocity; })};
+    };
+    d.mmd_strict = mmd("mmd.strict.", &ScenarioEvaluation::mmd_strict);
+    d.mmd_relaxed = mmd("mmd.relaxed.", &ScenarioEvaluation::mmd_relaxed);
+  }
+  return d;
+}
+
+}  // namespace ss

@@ -1,0 +1,31 @@
+// Dataset values from per-scenario evaluations: means over scenarios, as the official aggregation does.
+#pragma once
+
+#include <array>
+#include <map>
+#include <span>
+#include <string>
+
+#include "engine/eval/evaluate.h"
+
+namespace ss {
+
+struct DatasetEvaluation {
+  int scenarios = 0;
+  int named_scenarios = 0;  // scenarios whose evaluated objects are their SDC and tracks_to_predict
+  int evaluated_objects = 0;
+  RealismScores realism;    // means over scenarios; buckets from the mean likelihoods (as the official buckets)
+  MotionMetrics motion_all, motion_predict;  // means of the scene values; `agents` summed
+  bool has_mmd = false;
+  InitialStateMmd mmd_strict, mmd_relaxed;
+  double filled_share = 0;  // mean over scenarios
+  int to_match = 0, matched = 0;
+  double match_distance = 0;
+  std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // summed
+  // Values undefined (NaN) in some scenarios are averaged over the others; how many were left out, by JSON key.
+  std::map<std::string, int> undefined;
+};
+
+DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios);
+
+}  // namespace ss

@@ -1,0 +1,162 @@
+#include "engine/eval/evaluate.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "engine/eval/baselines.h"
+#include "engine/eval/model_rollout.h"
+#include "engine/eval/scene_features.h"
+
+namespace ss {
+namespace {
+
+uint64_t splitmix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// Per-rollout means of the MMD values that are defined.
+struct MmdMean {
+  InitialStateMmd sum{};
+  std::array<int, 4> n{};
+  void add(const InitialStateMmd& m) {
+    const double v[4] = {m.position, m.heading, m.size, m.velocity};
+    double* s[4] = {&sum.position, &sum.heading, &sum.size, &sum.velocity};
+    for (int i = 0; i < 4; ++i)
+      if (std::isfinite(v[i])) *s[i] += v[i], ++n[i];
+  }
+  InitialStateMmd mean() const {
+    auto m = [&](double s, int k) { return k ? s / k : std::nan(""); };
+    return {m(sum.position, n[0]), m(sum.heading, n[1]), m(sum.size, n[2]), m(sum.velocity, n[3])};
+  }
+};
+
+void add_histograms(const SceneFeatures& log, std::span<const SceneFeatures> sims, std::span<const ObjectType> types,
+                    std::array<FeatureHistogram, kNumRealismFeatures>& out) {
+  for (int f = 0; f < kNumRealismFeatures; ++f) {
+    const FeatureConfig& c = wosac_2025_config()[f];
+    if (c.bernoulli) continue;
+    const HistogramConfig fine{c.histogram.min, c.histogram.max, kPlotBins, 0};
+    out[f].log.assign(kPlotBins, 0.0);
+    out[f].sim.assign(kPlotBins, 0.0);
+    for (size_t i = 0; i < types.size(); ++i) {
+      const std::vector<uint8_t> mask = feature_mask(static_cast<RealismFeature>(f), log.valid[i], types[i]);
+      for (size_t t = 0; t < mask.size(); ++t) {
+        if (!mask[t]) continue;
+        if (!std::isnan(log.values[f][i][t])) out[f].log[histogram_bin(fine, log.values[f][i][t])] += 1;
+        for (const SceneFeatures& s : sims)
+          if (!std::isnan(s.values[f][i][t])) out[f].sim[histogram_bin(fine, s.values[f][i][t])] += 1;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+const char* eval_policy_name(EvalPolicy p) {
+  switch (p) {
+    case EvalPolicy::model: return "model";
+    case EvalPolicy::constant_velocity: return "constant velocity";
+    case EvalPolicy::log_replay: return "log replay";
+  }
+  return "?";
+}
+
+uint64_t rollout_seed(uint64_t base, const std::string& scenario_id, int rollout) {
+  uint64_t h = 0xCBF29CE484222325ull;  // FNV-1a: the same on every platform, unlike std::hash
+  for (unsigned char c : scenario_id) h = (h ^ c) * 0x100000001B3ull;
+  return splitmix64(splitmix64(base ^ h) + static_cast<uint64_t>(rollout));
+}
+
+absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scenario> scenario, const EvalOptions& options,
+                                                     std::shared_ptr<const Model> model, MapCache* maps) {
+  const Scenario& s = *scenario;
+  const int now = s.current_time_index;
+  if (options.rollouts < 1) return absl::InvalidArgumentError("rollouts must be at least 1");
+  if (now < 0 || now + 1 >= s.num_frames())
+    return absl::InvalidArgumentError(
+        absl::StrCat("scenario ", s.id, ": no frame after the current frame ", now, " of ", s.num_frames()));
+  const EvaluatedObjects ev = evaluated_objects(s);
+  if (ev.tracks.empty())
+    return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, ": no agent is valid at the current frame ", now));
+
+  ScenarioEvaluation out;
+  out.id = s.id;
+  out.named_by_scenario = ev.named_by_scenario;
+  out.evaluated = static_cast<int>(ev.tracks.size());
+  const std::vector<int> tracks = sim_agent_tracks(s);
+  out.sim_agents = static_cast<int>(tracks.size());
+  const std::vector<int> evaluated = scene_indices(tracks, ev.tracks);
+  std::vector<ObjectType> types;
+  for (int t : ev.tracks) types.push_back(s.tracks[t].type);
+
+  const EvalMap map = EvalMap::from_scenario(s);
+  const JointScene log = log_scene(s, tracks);
+  const SceneFeatures log_features = scene_features(log, evaluated, map, now);
+
+  std::vector<JointScene> rollouts;
+  std::vector<SceneFeatures> sims;
+  if (options.policy != EvalPolicy::model) {
+    // Deterministic policies: one rollout, repeated so the estimators see the same sample size as the model's.
+    JointScene scene = options.policy == EvalPolicy::constant_velocity ? constant_velocity_scene(s, tracks)
+                                                                       : log_replay_scene(s, tracks);
+    const SceneFeatures f = scene_features(scene, evaluated, map, now, &log, evaluated);
+    rollouts.assign(options.rollouts, scene);
+    sims.assign(options.rollouts, f);
+  } else {
+    if (!model || !maps) return absl::InvalidArgumentError("the model policy needs a model");
+    auto context = maps->get(s);
+    if (!context.ok())
+      return absl::Status(context.status().code(), absl::StrCat("scenario ", s.id, ": ", context.status().message()));
+    const bool full = options.session.mode == SessionMode::full;
+    const Pose frame = mmd_frame(s);
+    const std::vector<InitialAgent> log_initial = log_initial_agents(s);
+    const std::vector<InitialAgent> log_strict = strict_set(log_initial, frame, s);
+    MmdMean strict, relaxed;
+    int driven = 0, filled = 0;
+    double match_total = 0;
+    for (int k = 0; k < options.rollouts; ++k) {
+      SessionOptions o = options.session;
+      o.seed = rollout_seed(options.session.seed, s.id, k);
+      auto steps = run_model_rollout(model, scenario, *context, o);
+      if (!steps.ok()) return steps.status();
+      RolloutScene r = rollout_scene(s, tracks, *steps, full);
+      driven += r.driven_frames, filled += r.filled_frames;
+      out.to_match += r.to_match, out.matched += r.matched;
+      match_total += r.match_distance * r.matched;
+      if (full) {
+        const std::vector<InitialAgent> gen = generated_initial_agents(steps->front());
+        relaxed.add(initial_state_mmd(gen, log_initial, frame));
+        strict.add(initial_state_mmd(strict_set(gen, frame, s), log_strict, frame));
+      }
+      sims.push_back(scene_features(r.scene, evaluated, map, now, &log, evaluated));
+      rollouts.push_back(std::move(r.scene));
+    }
+    out.filled_share = driven + filled ? static_cast<double>(filled) / (driven + filled) : 0.0;
+    out.match_distance = out.matched ? match_total / out.matched : 0.0;
+    if (full) out.has_mmd = true, out.mmd_strict = strict.mean(), out.mmd_relaxed = relaxed.mean();
+  }
+
+  out.realism = score_realism(log_features, sims, types);
+  add_histograms(log_features, sims, types, out.histograms);
+
+  // Motion metrics: the SDC is left out (the model's rollouts replay its log).
+  std::vector<int> all, predict;
+  for (size_t k = 0; k < tracks.size(); ++k)
+    if (tracks[k] != s.sdc_track_index) all.push_back(static_cast<int>(k));
+  std::vector<int> named;
+  for (const RequiredPrediction& r : s.tracks_to_predict) named.push_back(r.track_index);
+  for (int t : named.empty() ? ev.tracks : named) {
+    const int k = scene_indices(tracks, {t})[0];
+    if (k >= 0 && t != s.sdc_track_index && std::find(predict.begin(), predict.end(), k) == predict.end())
+      predict.push_back(k);
+  }
+  out.motion_all = motion_metrics(log, rollouts, all, now);
+  out.motion_predict = motion_metrics(log, rollouts, predict, now);
+  return out;
+}
+
+}  // namespace ss

@@ -1,0 +1,37 @@
+// Per-scenario WOSAC scores (metrics-spec.md A7, A8): each feature's likelihood of the log under the rollouts'
+// distribution, the weighted meta-metric, its three buckets, collision and offroad rates, ADE and minADE.
+#pragma once
+
+#include <array>
+#include <span>
+#include <vector>
+
+#include "engine/eval/estimators.h"
+#include "engine/eval/scene_features.h"
+#include "engine/scenario/scenario.h"
+
+namespace ss {
+
+struct RealismScores {
+  // NaN where the feature has no valid (object, frame) in this scenario (metrics-spec.md A9.6).
+  std::array<double, kNumRealismFeatures> likelihood{};
+  double meta = 0;         // sum of weight x likelihood
+  double kinematic = 0, interactive = 0, map = 0;  // weighted means of each bucket's likelihoods
+  double collision_rate = 0, offroad_rate = 0;     // share of (rollout, object) with any collision / offroad
+  double ade = 0, min_ade = 0;                     // mean over rollouts and objects; min over rollouts of the mean
+};
+
+enum class RealismBucket { kinematic, interactive, map };
+// The features of a bucket and the bucket's weighted mean of the given likelihoods.
+std::vector<RealismFeature> bucket_features(RealismBucket b);
+double bucket_score(RealismBucket b, const std::array<double, kNumRealismFeatures>& likelihood);
+
+// `log` is the log's features (its `valid` is the scoring mask), `sims` one per rollout (with `ade`), `types` the
+// evaluated objects' types (time to collision and light violations score vehicles only).
+RealismScores score_realism(const SceneFeatures& log, std::span<const SceneFeatures> sims,
+                            std::span<const ObjectType> types);
+
+// The scoring mask of a feature for one object: which of its simulated frames count (metrics-spec.md A8).
+std::vector<uint8_t> feature_mask(RealismFeature f, const std::vector<uint8_t>& log_valid, ObjectType type);
+
+}  // namespace ss

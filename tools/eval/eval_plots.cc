@@ -1,0 +1,121 @@
+#include "tools/eval/eval_plots.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+
+namespace ss::cli {
+namespace {
+
+constexpr double kWidth = 640, kHeight = 360, kLeft = 56, kRight = 16, kTop = 40, kBottom = 48;
+
+std::string escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '<') out += "&lt;";
+    else if (c == '>') out += "&gt;";
+    else if (c == '&') out += "&amp;";
+    else out += c;
+  }
+  return out;
+}
+
+std::vector<double> normalised(const std::vector<double>& counts) {
+  double total = 0;
+  for (double c : counts) total += c;
+  std::vector<double> out(counts.size(), 0.0);
+  if (total > 0)
+    for (size_t i = 0; i < counts.size(); ++i) out[i] = counts[i] / total;
+  return out;
+}
+
+const char* unit(RealismFeature f) {
+  switch (f) {
+    case kLinearSpeed: return "m/s";
+    case kLinearAcceleration: return "m/s^2";
+    case kAngularSpeed: return "rad/s";
+    case kAngularAcceleration: return "rad/s^2";
+    case kTimeToCollision: return "s";
+    default: return "m";
+  }
+}
+
+}  // namespace
+
+std::string histogram_svg(const std::string& title, const std::string& label, double min, double max,
+                          const std::vector<double>& log, const std::vector<double>& sim) {
+  const std::vector<double> a = normalised(log), b = normalised(sim);
+  const size_t bins = std::max(a.size(), b.size());
+  double top = 0;
+  for (double v : a) top = std::max(top, v);
+  for (double v : b) top = std::max(top, v);
+  if (top <= 0) top = 1;
+  const double plot_w = kWidth - kLeft - kRight, plot_h = kHeight - kTop - kBottom;
+  const double bar = bins ? plot_w / bins : plot_w;
+  std::string s = absl::StrFormat(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" viewBox=\"0 0 %.0f %.0f\" "
+      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
+      kWidth, kHeight, kWidth, kHeight);
+  absl::StrAppendFormat(&s, "<text x=\"%.0f\" y=\"22\" font-size=\"15\">%s</text>\n", kLeft, escape(title));
+  // Bars: the log filled, the rollouts outlined on top, so both stay visible where they overlap.
+  for (size_t i = 0; i < bins; ++i) {
+    const double x = kLeft + i * bar;
+    const double ha = i < a.size() ? a[i] / top * plot_h : 0, hb = i < b.size() ? b[i] / top * plot_h : 0;
+    absl::StrAppendFormat(&s, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"#9ecae1\"/>\n", x + 1,
+                          kTop + plot_h - ha, bar - 2, ha);
+    absl::StrAppendFormat(&s,
+                          "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"none\" stroke=\"#d62728\" "
+                          "stroke-width=\"1.5\"/>\n",
+                          x + 1, kTop + plot_h - hb, bar - 2, hb);
+  }
+  // Axes with the range ends and the middle, and the largest share.
+  absl::StrAppendFormat(&s, "<line x1=\"%.0f\" y1=\"%.0f\" x2=\"%.0f\" y2=\"%.0f\" stroke=\"black\"/>\n", kLeft,
+                        kTop + plot_h, kLeft + plot_w, kTop + plot_h);
+  absl::StrAppendFormat(&s, "<line x1=\"%.0f\" y1=\"%.0f\" x2=\"%.0f\" y2=\"%.0f\" stroke=\"black\"/>\n", kLeft, kTop,
+                        kLeft, kTop + plot_h);
+  for (int k = 0; k <= 2; ++k)
+    absl::StrAppendFormat(&s, "<text x=\"%.1f\" y=\"%.0f\" text-anchor=\"middle\">%g</text>\n", kLeft + k * plot_w / 2,
+                          kTop + plot_h + 16, min + k * (max - min) / 2);
+  absl::StrAppendFormat(&s, "<text x=\"%.0f\" y=\"%.0f\" text-anchor=\"end\">%.2f</text>\n", kLeft - 4, kTop + 4, top);
+  absl::StrAppendFormat(&s, "<text x=\"%.0f\" y=\"%.0f\" text-anchor=\"end\">0</text>\n", kLeft - 4, kTop + plot_h);
+  absl::StrAppendFormat(&s,
+                        "<rect x=\"%.0f\" y=\"%.0f\" width=\"12\" height=\"10\" fill=\"#9ecae1\"/><text x=\"%.0f\" "
+                        "y=\"%.0f\">log</text>\n",
+                        kLeft, kHeight - 18, kLeft + 16, kHeight - 9);
+  absl::StrAppendFormat(&s,
+                        "<rect x=\"%.0f\" y=\"%.0f\" width=\"12\" height=\"10\" fill=\"none\" stroke=\"#d62728\"/>"
+                        "<text x=\"%.0f\" y=\"%.0f\">%s</text>\n",
+                        kLeft + 70, kHeight - 18, kLeft + 86, kHeight - 9, escape(label));
+  s += "</svg>\n";
+  return s;
+}
+
+absl::Status write_feature_plots(const std::string& dir, const std::string& label, const DatasetEvaluation& d,
+                                 std::vector<std::string>* written) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return absl::PermissionDeniedError(absl::StrCat("--plots: cannot create ", dir, ": ", ec.message()));
+  for (int f = 0; f < kNumRealismFeatures; ++f) {
+    const FeatureConfig& c = wosac_2025_config()[f];
+    const FeatureHistogram& h = d.histograms[f];
+    if (c.bernoulli || h.log.empty()) continue;
+    const std::string path = (std::filesystem::path(dir) / (std::string(c.name) + ".svg")).string();
+    const std::string svg = histogram_svg(absl::StrCat(c.name, " (", unit(static_cast<RealismFeature>(f)),
+                                                       "): log vs rollouts, share of scored frames"),
+                                          label,
+                                          c.histogram.min, c.histogram.max, h.log, h.sim);
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << svg;
+    out.close();
+    if (!out) return absl::PermissionDeniedError(absl::StrCat("--plots: cannot write ", path, ": ", std::strerror(errno)));
+    written->push_back(path);
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace ss::cli
