@@ -33,9 +33,9 @@ fuzz:
 	$(MAKE) fuzz-build FUZZ_SECONDS=$(FUZZ_LONG_SECONDS)
 	ctest --test-dir $(FUZZ_BUILD) --output-on-failure
 
-# Until the gRPC server lands, `make serve` shows what the engine makes of the bundled scenarios.
+# The gRPC server with its defaults: the bundled model (or random weights, loudly), the bundled scenarios, port 50051.
 serve: build
-	$(BUILD)/tools/scenestreamer inspect $(SERVE_DATA)
+	$(BUILD)/server/scenestreamer-server
 
 clean:
 	rm -rf $(BUILD) $(FUZZ_BUILD)

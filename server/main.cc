@@ -1,0 +1,165 @@
+// scenestreamer-server: the SceneStreamer simulator over gRPC. With no flags it loads the bundled model (or random
+// weights, loudly, until a trained model exists) and the bundled scenarios and serves on port 50051.
+#include <signal.h>
+
+#include <filesystem>
+#include <thread>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "grpcpp/ext/proto_server_reflection_plugin.h"
+#include "grpcpp/grpcpp.h"
+#include "grpcpp/health_check_service_interface.h"
+#include "server/metrics.h"
+#include "server/session_manager.h"
+#include "server/simulator_service.h"
+#include "spdlog/spdlog.h"
+
+ABSL_FLAG(std::string, host, "0.0.0.0", "Address to listen on (tests use 127.0.0.1)");
+ABSL_FLAG(int, port, 50051, "gRPC port (0: pick a free one; the chosen port is logged)");
+ABSL_FLAG(std::string, model, "",
+          "Model weights (safetensors); empty: the first models/*.safetensors, else random weights");
+ABSL_FLAG(std::string, random_config, "large", "Config of the random weights used when no model exists");
+ABSL_FLAG(std::string, scenario_dir, "",
+          "Directory of WOMD TFRecord / GPUDrive JSON scenarios; empty: data/ if it holds any, else "
+          "../shared/data/womd/tfrecord");
+ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction and SIGTERM, and restored from on start");
+ABSL_FLAG(int, max_sessions, 256, "Cap on sessions in memory");
+ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state), MiB");
+ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
+ABSL_FLAG(double, evict_idle_s, 30, "A session unused this long may be evicted (least recently used first) for room");
+ABSL_FLAG(int, threads, 0, "Engine calls running at once; 0: the number of cores");
+ABSL_FLAG(int, tick_deadline_ms, 2000, "Default wait of a multi-client tick for its late controllers");
+ABSL_FLAG(double, call_deadline_s, 120, "Deadline of a call whose client set none");
+ABSL_FLAG(int, max_message_mb, 64, "Largest request or response, MiB (also the largest client-sent scenario)");
+ABSL_FLAG(int, max_scenario_tracks, 1024, "Largest number of tracks in a scenario");
+ABSL_FLAG(int, max_map_features, 20000, "Largest number of map features in a scenario");
+ABSL_FLAG(int, metrics_port, 9464, "Prometheus text metrics on 127.0.0.1:PORT (-1: off, 0: a free port)");
+ABSL_FLAG(double, drain_grace_s, 1.0,
+          "On SIGTERM, keep answering at least this long (health NOT_SERVING, new calls UNAVAILABLE) so clients and "
+          "load balancers see the drain rather than a closed connection");
+ABSL_FLAG(std::string, log_level, "info", "trace, debug, info, warn, error");
+
+namespace {
+
+std::string default_model() {
+  std::error_code ec;
+  std::vector<std::string> found;
+  for (const auto& e : std::filesystem::directory_iterator("models", ec))
+    if (e.path().extension() == ".safetensors") found.push_back(e.path().string());
+  std::sort(found.begin(), found.end());
+  return found.empty() ? "" : found[0];
+}
+
+std::string default_scenario_dir() {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator("data", ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.find(".tfrecord") != std::string::npos || e.path().extension() == ".json") return "data";
+  }
+  return "../shared/data/womd/tfrecord";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage("scenestreamer-server [--port P] [--model W] [--scenario_dir D] [--snapshot_dir S] ...");
+  absl::ParseCommandLine(argc, argv);
+  spdlog::set_level(spdlog::level::from_str(absl::GetFlag(FLAGS_log_level)));
+
+  // SIGTERM and SIGINT are taken by one thread (sigwait), so no handler runs inside gRPC's threads.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  ss::EngineOptions eo;
+  eo.model_path = absl::GetFlag(FLAGS_model).empty() ? default_model() : absl::GetFlag(FLAGS_model);
+  eo.random_config = absl::GetFlag(FLAGS_random_config);
+  const std::string scenario_dir =
+      absl::GetFlag(FLAGS_scenario_dir).empty() ? default_scenario_dir() : absl::GetFlag(FLAGS_scenario_dir);
+  eo.scenario_paths = {scenario_dir};
+  const int max_message = absl::GetFlag(FLAGS_max_message_mb) << 20;
+  eo.max_scenario_bytes = static_cast<size_t>(max_message);
+  eo.max_scenario_tracks = absl::GetFlag(FLAGS_max_scenario_tracks);
+  eo.max_map_features = absl::GetFlag(FLAGS_max_map_features);
+  auto engine = ss::engine_create(eo);
+  if (!engine.ok()) {
+    spdlog::critical("cannot start: {}", std::string(engine.status().message()));
+    return 1;
+  }
+  if (ss::engine_random_weights(**engine))
+    spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise). Pass --model FILE or "
+                 "put a .safetensors file in models/ !!!", eo.random_config);
+  else
+    spdlog::info("model {} (config {})", eo.model_path, ss::engine_model_config(**engine).name);
+  spdlog::info("{} scenarios from {}", ss::engine_scenarios(**engine).size(), scenario_dir);
+
+  ss::server::Metrics metrics;
+  ss::server::ManagerOptions mo;
+  mo.snapshot_dir = absl::GetFlag(FLAGS_snapshot_dir);
+  mo.max_sessions = absl::GetFlag(FLAGS_max_sessions);
+  mo.max_cache_bytes = static_cast<uint64_t>(absl::GetFlag(FLAGS_max_cache_mb)) << 20;
+  mo.idle_timeout_s = absl::GetFlag(FLAGS_idle_timeout_s);
+  mo.evict_idle_s = absl::GetFlag(FLAGS_evict_idle_s);
+  mo.compute_threads = absl::GetFlag(FLAGS_threads) > 0 ? absl::GetFlag(FLAGS_threads)
+                                                         : static_cast<int>(std::thread::hardware_concurrency());
+  mo.default_tick_deadline_ms = absl::GetFlag(FLAGS_tick_deadline_ms);
+  ss::server::SessionManager sessions(**engine, mo, metrics);
+  metrics.sessions = [&] { return sessions.count(); };
+  metrics.cache_bytes = [&] { return sessions.total_bytes(); };
+  if (!mo.snapshot_dir.empty()) {
+    const int n = sessions.restore_all();
+    spdlog::info("restored {} sessions from {}", n, mo.snapshot_dir);
+  }
+
+  ss::server::MetricsHttp metrics_http(metrics);
+  if (absl::GetFlag(FLAGS_metrics_port) >= 0) {
+    if (metrics_http.start("127.0.0.1", absl::GetFlag(FLAGS_metrics_port)))
+      spdlog::info("metrics on http://127.0.0.1:{}/metrics", metrics_http.port());
+    else
+      spdlog::warn("metrics port {} unavailable; metrics off", absl::GetFlag(FLAGS_metrics_port));
+  }
+
+  ss::server::SimulatorService service(**engine, sessions, metrics, absl::GetFlag(FLAGS_call_deadline_s));
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  int port = 0;
+  const std::string address = absl::GetFlag(FLAGS_host) + ":" + std::to_string(absl::GetFlag(FLAGS_port));
+  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &port);
+  builder.SetMaxReceiveMessageSize(max_message);
+  builder.SetMaxSendMessageSize(max_message);
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || port == 0) {
+    spdlog::critical("cannot listen on {}", address);
+    return 1;
+  }
+  server->GetHealthCheckService()->SetServingStatus(true);
+  spdlog::info("serving scenestreamer.v1.Simulator on {}:{} ({} compute threads)", absl::GetFlag(FLAGS_host), port,
+               mo.compute_threads);
+
+  int sig = 0;
+  sigwait(&signals, &sig);
+  spdlog::info("signal {}: draining (health NOT_SERVING, no new sessions, finishing calls in flight)", sig);
+  server->GetHealthCheckService()->SetServingStatus(false);
+  sessions.start_draining();
+  // Calls in flight finish while the server still answers (new ones get UNAVAILABLE from the handlers).
+  const auto drain_start = std::chrono::steady_clock::now();
+  const auto grace_end = drain_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                           std::chrono::duration<double>(absl::GetFlag(FLAGS_drain_grace_s)));
+  const auto drain_deadline = drain_start + std::chrono::seconds(30);
+  while ((service.in_flight() > 0 || std::chrono::steady_clock::now() < grace_end) &&
+         std::chrono::steady_clock::now() < drain_deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(30));
+  server->Wait();
+  const int saved = sessions.save_all();
+  if (!mo.snapshot_dir.empty()) spdlog::info("saved {} sessions to {}", saved, mo.snapshot_dir);
+  metrics_http.stop();
+  spdlog::info("stopped");
+  return 0;
+}

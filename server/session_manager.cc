@@ -1,0 +1,657 @@
+#include "server/session_manager.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <random>
+
+#include "absl/strings/str_cat.h"
+#include "server/snapshot.h"
+#include "spdlog/spdlog.h"
+
+namespace ss::server {
+
+// One hosted session. `engine_mu` serialises engine calls on `session`; `mu` guards the tick clock, the multi-client
+// barrier and the recent ticks (held only briefly, never across an engine call).
+struct ManagedSession {
+  std::string id;
+  SessionSource source;
+  int tick_hz = 2;
+  int tick_deadline_ms = 0;
+
+  std::timed_mutex engine_mu;
+  std::unique_ptr<Session> session;
+  StepResult last_step;                          // the last model step (10 Hz ticks extrapolate from it)
+  std::map<int64_t, ControlInput> latest_pose;   // 10 Hz: every controller's latest pose
+  std::map<int64_t, ControlInput> step_controls; // 10 Hz: poses since the last model step
+  std::atomic<uint64_t> bytes{0};
+  std::atomic<int64_t> last_used{0};             // steady clock, nanoseconds
+
+  std::mutex mu;
+  std::condition_variable cv;
+  int64_t tick = 0;
+  StepResult view;
+  std::set<int64_t> controllers;                 // controlled agents alive: each may have its own client
+  std::map<int64_t, ControlInput> pending;       // poses for tick + 1
+  std::optional<Clock::time_point> pending_since;
+  bool stepping = false;
+  int64_t failed_tick = -1;
+  absl::Status failed_status;
+  std::deque<TickView> recent;                   // the last ticks, for waiting controllers and watchers
+  bool closed = false;
+
+  void touch() { last_used = Clock::now().time_since_epoch().count(); }
+  double idle_seconds() const {
+    return std::chrono::duration<double>(Clock::now().time_since_epoch() - Clock::duration(last_used.load())).count();
+  }
+  // Holds mu.
+  void publish(const StepResult& v) {
+    view = v;
+    controllers.clear();
+    for (const AgentView& a : v.agents)
+      if (a.controlled) controllers.insert(a.id);
+    recent.push_back({tick, v});
+    while (recent.size() > 64) recent.pop_front();
+  }
+};
+
+namespace {
+
+constexpr int kTicksPerStep10Hz = 5;
+
+std::string random_id() {
+  std::random_device rd;  // the kernel's CSPRNG: ids are unguessable
+  static const char* hex = "0123456789abcdef";
+  std::string s;
+  for (int i = 0; i < 4; ++i) {
+    uint32_t v = rd();
+    for (int j = 0; j < 8; ++j) s += hex[(v >> (4 * j)) & 15];
+  }
+  return s;
+}
+
+absl::Status valid_proposed_id(const std::string& id) {
+  if (id.size() > 128) return absl::InvalidArgumentError("session_id: longer than 128 characters");
+  for (char c : id)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
+      return absl::InvalidArgumentError(absl::StrCat("session_id '", id, "': only letters, digits, '-', '_', '.'"));
+  if (id[0] == '.') return absl::InvalidArgumentError(absl::StrCat("session_id '", id, "' must not start with '.'"));
+  return absl::OkStatus();
+}
+
+StepResult view_at(const StepResult& step, int tick_hz, int64_t tick) {
+  if (tick_hz != 10 || tick % kTicksPerStep10Hz == 0) return step;
+  return tick_between_steps(step, static_cast<int>(tick % kTicksPerStep10Hz), kTicksPerStep10Hz, {});
+}
+
+}  // namespace
+
+SessionManager::SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics)
+    : engine_(engine), options_(std::move(options)), metrics_(metrics), slots_(std::max(1, options_.compute_threads)) {
+  reaper_ = std::thread([this] { reaper(); });
+}
+
+SessionManager::~SessionManager() {
+  stop_ = true;
+  if (reaper_.joinable()) reaper_.join();
+}
+
+absl::Status SessionManager::compute(Clock::time_point deadline, const std::function<absl::Status()>& fn) {
+  if (!slots_.acquire_until(deadline))
+    return absl::DeadlineExceededError("the call's deadline passed while waiting for a compute thread");
+  thread_local bool initialised = false;
+  if (!initialised) {
+    engine_thread_init();
+    initialised = true;
+  }
+  absl::Status st = fn();
+  slots_.release();
+  return st;
+}
+
+int SessionManager::count() {
+  std::lock_guard<std::mutex> l(mu_);
+  return static_cast<int>(sessions_.size());
+}
+
+uint64_t SessionManager::total_bytes() {
+  std::lock_guard<std::mutex> l(mu_);
+  uint64_t b = 0;
+  for (const auto& [id, s] : sessions_) b += s->bytes;
+  return b;
+}
+
+absl::StatusOr<std::string> SessionManager::new_id(const std::string& proposed) {
+  if (proposed.empty()) return random_id();
+  if (auto st = valid_proposed_id(proposed); !st.ok()) return st;
+  if (sessions_.count(proposed) || evicted_.count(proposed))
+    return absl::AlreadyExistsError(absl::StrCat("session_id '", proposed, "' is already in use"));
+  return proposed;
+}
+
+absl::Status SessionManager::save(ManagedSession& s) {
+  Snapshot snap;
+  snap.session_id = s.id;
+  snap.source = s.source;
+  snap.tick_hz = s.tick_hz;
+  snap.tick_deadline_ms = s.tick_deadline_ms;
+  {
+    std::lock_guard<std::mutex> l(s.mu);
+    snap.tick = s.tick;
+  }
+  snap.session_bytes = s.session->save();
+  return write_snapshot(options_.snapshot_dir, snap);
+}
+
+absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>& s) {
+  std::unique_lock<std::timed_mutex> e(s->engine_mu, std::try_to_lock);
+  if (!e.owns_lock()) return absl::AbortedError("busy");
+  if (!options_.snapshot_dir.empty()) {
+    if (auto st = save(*s); !st.ok()) return st;
+    evicted_.insert(s->id);
+  }
+  {
+    std::lock_guard<std::mutex> l(s->mu);
+    s->closed = true;
+    s->cv.notify_all();
+  }
+  sessions_.erase(s->id);
+  metrics_.count_eviction();
+  spdlog::info("session {}: evicted after {:.1f} s idle{}", s->id, s->idle_seconds(),
+               options_.snapshot_dir.empty() ? " (no snapshot directory: dropped)" : ", snapshot saved");
+  return absl::OkStatus();
+}
+
+absl::Status SessionManager::make_room_locked(uint64_t extra_bytes) {
+  auto over = [&] {
+    uint64_t b = extra_bytes;
+    for (const auto& [id, s] : sessions_) b += s->bytes;
+    return static_cast<int>(sessions_.size()) + 1 > options_.max_sessions ||
+           b > options_.max_cache_bytes;
+  };
+  while (over()) {
+    std::vector<std::shared_ptr<ManagedSession>> idle;
+    for (const auto& [id, s] : sessions_)
+      if (s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
+    std::sort(idle.begin(), idle.end(), [](const auto& a, const auto& b) { return a->last_used < b->last_used; });
+    bool evicted = false;
+    for (const auto& s : idle)
+      if (evict_locked(s).ok()) {
+        evicted = true;
+        break;
+      }
+    if (!evicted) {
+      uint64_t b = 0;
+      for (const auto& [id, s] : sessions_) b += s->bytes;
+      return absl::ResourceExhaustedError(absl::StrCat(
+          std::to_string(sessions_.size()), " sessions holding ", std::to_string(b),
+          " bytes: the caps are --max_sessions=", std::to_string(options_.max_sessions), " and --max_cache_mb=",
+          std::to_string(options_.max_cache_bytes >> 20), ", and no session has been idle for --evict_idle_s=",
+          std::to_string(options_.evict_idle_s), " s to be evicted"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, const SessionOptions& options,
+                                                int tick_hz, int tick_deadline_ms, const std::string& proposed_id,
+                                                Clock::time_point deadline, std::string* id_out) {
+  if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
+  if (tick_hz == 0) tick_hz = 2;
+  if (tick_hz != 2 && tick_hz != 10)
+    return absl::InvalidArgumentError(absl::StrCat("tick_hz ", std::to_string(tick_hz), ": only 2 or 10"));
+  if (tick_deadline_ms < 0) return absl::InvalidArgumentError("tick_deadline_ms must not be negative");
+  std::string id;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    auto nid = new_id(proposed_id);
+    if (!nid.ok()) return nid.status();
+    id = *nid;
+    if (auto st = make_room_locked(0); !st.ok()) return st;
+  }
+  auto s = std::make_shared<ManagedSession>();
+  s->id = id;
+  s->source = source;
+  s->tick_hz = tick_hz;
+  s->tick_deadline_ms = tick_deadline_ms ? tick_deadline_ms : options_.default_tick_deadline_ms;
+  absl::Status st = compute(deadline, [&] {
+    auto session = session_create(engine_, source, options);
+    if (!session.ok()) return session.status();
+    s->session = std::move(*session);
+    s->last_step = s->session->current();
+    s->bytes = s->session->memory_bytes() + source.womd_bytes.size();
+    return absl::OkStatus();
+  });
+  if (!st.ok()) return st;
+  s->touch();
+  TickView out;
+  {
+    std::lock_guard<std::mutex> l(s->mu);
+    s->publish(s->last_step);
+    out = s->recent.back();
+  }
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
+    if (sessions_.count(id)) return absl::AlreadyExistsError(absl::StrCat("session_id '", id, "' is already in use"));
+    if (auto st2 = make_room_locked(s->bytes); !st2.ok()) return st2;
+    sessions_[id] = s;
+  }
+  spdlog::info("session {}: created on {} ({} mode, seed {}, {} Hz, {} agents, {} bytes)", id,
+               source.scenario_name.empty() ? std::string("client-sent scenario") : source.scenario_name,
+               session_mode_name(options.mode), options.seed, tick_hz, out.view.agents.size(), s->bytes.load());
+  *id_out = id;
+  return out;
+}
+
+absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::find(const std::string& id,
+                                                                     Clock::time_point deadline) {
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) {
+      it->second->touch();
+      return it->second;
+    }
+    if (!evicted_.count(id))
+      return absl::NotFoundError(absl::StrCat("session_id '", id, "' is not an open session"));
+    if (draining_) return absl::UnavailableError("the server is draining: evicted sessions are not restored now");
+  }
+  // Evicted earlier: bring it back from its snapshot.
+  auto s = restore_file(snapshot_path(options_.snapshot_dir, id), deadline);
+  if (!s.ok()) return s.status();
+  std::lock_guard<std::mutex> l(mu_);
+  auto it = sessions_.find(id);
+  if (it != sessions_.end()) return it->second;  // another call restored it first
+  if (auto st = make_room_locked((*s)->bytes); !st.ok()) return st;
+  evicted_.erase(id);
+  sessions_[id] = *s;
+  std::error_code ec;
+  std::filesystem::remove(snapshot_path(options_.snapshot_dir, id), ec);
+  spdlog::info("session {}: restored from its eviction snapshot at tick {}", id, (*s)->tick);
+  return *s;
+}
+
+absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_file(const std::string& path,
+                                                                             Clock::time_point deadline) {
+  auto snap = read_snapshot(path);
+  if (!snap.ok()) return snap.status();
+  auto s = std::make_shared<ManagedSession>();
+  s->id = snap->session_id;
+  s->source = snap->source;
+  s->tick_hz = snap->tick_hz;
+  s->tick_deadline_ms = snap->tick_deadline_ms;
+  absl::Status st = compute(deadline, [&] {
+    auto session = session_restore(engine_, snap->source, snap->session_bytes);
+    if (!session.ok()) return session.status();
+    s->session = std::move(*session);
+    s->last_step = s->session->current();
+    s->bytes = s->session->memory_bytes() + s->source.womd_bytes.size();
+    return absl::OkStatus();
+  });
+  if (!st.ok()) return absl::Status(st.code(), absl::StrCat("snapshot ", path, ": ", std::string(st.message())));
+  s->touch();
+  std::lock_guard<std::mutex> l(s->mu);
+  s->tick = snap->tick;
+  s->publish(view_at(s->last_step, s->tick_hz, s->tick));
+  return s;
+}
+
+absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n) {
+  int64_t tick;
+  {
+    std::lock_guard<std::mutex> l(s.mu);
+    tick = s.tick;
+  }
+  const std::vector<ControlInput> none;
+  for (int i = 0; i < n; ++i) {
+    // The poses are for the first tick; later ticks of the call keep the controlled agents' last control.
+    const std::vector<ControlInput>& controls_now = i == 0 ? controls : none;
+    const auto t0 = Clock::now();
+    StepResult view;
+    if (s.tick_hz == 2) {
+      auto r = s.session->step(controls_now);
+      if (!r.ok()) return r.status();
+      s.last_step = *r;
+      view = std::move(*r);
+    } else {
+      for (const ControlInput& c : controls_now) s.latest_pose[c.agent_id] = s.step_controls[c.agent_id] = c;
+      const int sub = static_cast<int>((tick + 1) % kTicksPerStep10Hz);
+      if (sub == 0) {
+        std::vector<ControlInput> at_step;
+        for (const auto& [id, c] : s.step_controls) at_step.push_back(c);
+        auto r = s.session->step(at_step);
+        if (!r.ok()) return r.status();
+        s.step_controls.clear();
+        s.last_step = *r;
+        view = std::move(*r);
+      } else {
+        std::vector<ControlInput> pushed;
+        for (const auto& [id, c] : s.latest_pose) pushed.push_back(c);
+        view = tick_between_steps(s.last_step, sub, kTicksPerStep10Hz, pushed);
+      }
+    }
+    ++tick;
+    s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
+    metrics_.count_step(std::chrono::duration<double>(Clock::now() - t0).count());
+    std::lock_guard<std::mutex> l(s.mu);
+    s.tick = tick;
+    s.publish(view);
+    s.cv.notify_all();
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id,
+                                                           const std::vector<ControlInput>& controls, int num_ticks,
+                                                           Clock::time_point deadline) {
+  if (draining_)
+    return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
+  auto found = find(id, deadline);
+  if (!found.ok()) return found.status();
+  ManagedSession& s = **found;
+  if (num_ticks == 0) num_ticks = 1;
+  if (num_ticks < 0 || num_ticks > 1000)
+    return absl::InvalidArgumentError(absl::StrCat("num_ticks ", std::to_string(num_ticks), ": must be in 1..1000"));
+  std::unique_lock<std::mutex> l(s.mu);
+  if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session '", id, "' was closed"));
+  for (size_t i = 0; i < controls.size(); ++i)
+    if (!s.controllers.count(controls[i].agent_id))
+      return absl::InvalidArgumentError(absl::StrCat("poses[", std::to_string(i), "].agent_id ",
+                                                     std::to_string(controls[i].agent_id),
+                                                     " is not a controlled agent of session '", id, "'"));
+  if (num_ticks > 1 && s.controllers.size() > 1)
+    return absl::InvalidArgumentError("num_ticks > 1 is only for sessions with at most one controlled agent");
+  if (s.stepping)
+    return absl::AbortedError(absl::StrCat("session '", id, "' is computing tick ", std::to_string(s.tick + 1),
+                                           ": calls on one session are serialised; retry after it returns"));
+  for (const ControlInput& c : controls)
+    if (s.pending.count(c.agent_id))
+      return absl::AbortedError(absl::StrCat("agent ", std::to_string(c.agent_id), " already sent its pose for tick ",
+                                             std::to_string(s.tick + 1), " of session '", id, "'"));
+  if (!s.pending_since) {
+    // A new attempt at the next tick: an earlier failed attempt's error is not this one's.
+    s.failed_tick = -1;
+    s.pending_since = Clock::now();
+  }
+  for (const ControlInput& c : controls) s.pending[c.agent_id] = c;
+  const int64_t target = s.tick + 1;
+  while (s.tick < target) {
+    if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session '", id, "' was closed"));
+    if (s.failed_tick == target) return s.failed_status;
+    // With one controller (or none) the caller is the only client: its call is the tick. With several, the tick
+    // waits for every controller's pose or the session's tick deadline.
+    bool all = true;
+    if (s.controllers.size() > 1)
+      for (int64_t c : s.controllers) all = all && s.pending.count(c);
+    const Clock::time_point tick_deadline =
+        *s.pending_since + std::chrono::milliseconds(s.tick_deadline_ms);
+    if (!s.stepping && (all || Clock::now() >= tick_deadline)) {
+      s.stepping = true;
+      std::vector<ControlInput> taken;
+      for (const auto& [aid, c] : s.pending) taken.push_back(c);
+      s.pending.clear();
+      s.pending_since.reset();
+      l.unlock();
+      absl::Status st;
+      {
+        std::unique_lock<std::timed_mutex> e(s.engine_mu, std::defer_lock);
+        if (!e.try_lock_until(deadline))
+          st = absl::DeadlineExceededError("the call's deadline passed while the session was busy");
+        else
+          st = compute(deadline, [&] { return run_ticks(s, taken, num_ticks); });
+      }
+      l.lock();
+      s.stepping = false;
+      if (!st.ok()) {
+        s.failed_tick = target;
+        s.failed_status = st;
+        s.cv.notify_all();
+        spdlog::warn("session {}: tick {} failed: {}", id, target, std::string(st.message()));
+        return st;
+      }
+      s.cv.notify_all();
+      break;
+    }
+    const Clock::time_point until = std::min(tick_deadline, deadline);
+    if (Clock::now() >= deadline) {
+      for (const ControlInput& c : controls) s.pending.erase(c.agent_id);
+      return absl::DeadlineExceededError(absl::StrCat("the call's deadline passed waiting for the other controllers "
+                                                      "of session '", id, "'"));
+    }
+    s.cv.wait_until(l, s.stepping ? deadline : until);
+  }
+  std::vector<TickView> out;
+  for (const TickView& t : s.recent)
+    if (t.tick >= target && t.tick < target + num_ticks) out.push_back(t);
+  s.touch();
+  return out;
+}
+
+absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& id, const InjectRequest& r,
+                                                            Clock::time_point deadline) {
+  if (draining_)
+    return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
+  auto found = find(id, deadline);
+  if (!found.ok()) return found.status();
+  ManagedSession& s = **found;
+  std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
+  if (!e.owns_lock())
+    return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
+  std::vector<int64_t> ids;
+  absl::Status st = compute(deadline, [&] {
+    auto r2 = s.session->inject(r);
+    if (!r2.ok()) return r2.status();
+    ids = *r2;
+    s.last_step = s.session->current();
+    s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
+    return absl::OkStatus();
+  });
+  if (!st.ok()) return st;
+  std::lock_guard<std::mutex> l(s.mu);
+  s.view = view_at(s.last_step, s.tick_hz, s.tick);
+  return ids;
+}
+
+absl::Status SessionManager::state_force(const std::string& id, const StateForceRequest& r) {
+  if (draining_)
+    return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
+  auto found = find(id, Clock::now() + std::chrono::seconds(30));
+  if (!found.ok()) return found.status();
+  ManagedSession& s = **found;
+  std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
+  if (!e.owns_lock())
+    return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
+  return s.session->state_force(r);
+}
+
+absl::Status SessionManager::close(const std::string& id) {
+  std::shared_ptr<ManagedSession> s;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    auto it = sessions_.find(id);
+    if (it == sessions_.end()) {
+      if (evicted_.erase(id)) {
+        std::error_code ec;
+        std::filesystem::remove(snapshot_path(options_.snapshot_dir, id), ec);
+        spdlog::info("session {}: closed (was evicted)", id);
+        return absl::OkStatus();
+      }
+      return absl::NotFoundError(absl::StrCat("session_id '", id, "' is not an open session"));
+    }
+    s = it->second;
+    sessions_.erase(it);
+  }
+  std::lock_guard<std::mutex> l(s->mu);
+  s->closed = true;
+  s->cv.notify_all();
+  spdlog::info("session {}: closed at tick {}", id, s->tick);
+  return absl::OkStatus();
+}
+
+static SessionInfo info_of(ManagedSession& s) {
+  SessionInfo i;
+  i.id = s.id;
+  i.scenario_name = s.source.scenario_name;
+  i.options = s.session->options();  // immutable after create
+  i.tick_hz = s.tick_hz;
+  i.memory_bytes = s.bytes;
+  i.idle_seconds = s.idle_seconds();
+  std::lock_guard<std::mutex> l(s.mu);
+  i.tick = s.tick;
+  i.step = s.view.step;
+  i.num_agents = static_cast<int>(s.view.agents.size());
+  i.controlled.assign(s.controllers.begin(), s.controllers.end());
+  return i;
+}
+
+absl::StatusOr<std::pair<SessionInfo, TickView>> SessionManager::get(const std::string& id) {
+  auto found = find(id, Clock::now() + std::chrono::seconds(30));
+  if (!found.ok()) return found.status();
+  SessionInfo info = info_of(**found);
+  std::lock_guard<std::mutex> l((*found)->mu);
+  return std::make_pair(info, TickView{(*found)->tick, (*found)->view});
+}
+
+std::vector<SessionInfo> SessionManager::list() {
+  std::vector<std::shared_ptr<ManagedSession>> all;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    for (const auto& [id, s] : sessions_) all.push_back(s);
+  }
+  std::vector<SessionInfo> out;
+  for (const auto& s : all) out.push_back(info_of(*s));
+  return out;
+}
+
+absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const std::string& proposed_id,
+                                                 Clock::time_point deadline) {
+  if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
+  auto found = find(id, deadline);
+  if (!found.ok()) return found.status();
+  ManagedSession& s = **found;
+  std::string nid;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    auto n = new_id(proposed_id);
+    if (!n.ok()) return n.status();
+    nid = *n;
+    if (auto st = make_room_locked(s.bytes); !st.ok()) return st;
+  }
+  auto f = std::make_shared<ManagedSession>();
+  f->id = nid;
+  f->source = s.source;
+  f->tick_hz = s.tick_hz;
+  f->tick_deadline_ms = s.tick_deadline_ms;
+  {
+    std::unique_lock<std::timed_mutex> e(s.engine_mu, std::defer_lock);
+    if (!e.try_lock_until(deadline)) return absl::DeadlineExceededError("the session stayed busy past the deadline");
+    absl::Status st = compute(deadline, [&] {
+      f->session = s.session->fork();
+      return absl::OkStatus();
+    });
+    if (!st.ok()) return st;
+    f->last_step = s.last_step;
+    f->latest_pose = s.latest_pose;
+    f->step_controls = s.step_controls;
+    f->bytes = s.bytes.load();
+    std::lock_guard<std::mutex> l(s.mu);
+    f->tick = s.tick;
+    f->publish(s.view);
+  }
+  f->touch();
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    if (sessions_.count(nid)) return absl::AlreadyExistsError(absl::StrCat("session_id '", nid, "' is in use"));
+    sessions_[nid] = f;
+  }
+  spdlog::info("session {}: forked from {} at tick {}", nid, id, f->tick);
+  return nid;
+}
+
+absl::Status SessionManager::watch(const std::string& id, const std::function<bool(const TickView&)>& send,
+                                   const std::function<bool()>& cancelled) {
+  auto found = find(id, Clock::now() + std::chrono::seconds(30));
+  if (!found.ok()) return found.status();
+  ManagedSession& s = **found;
+  int64_t next;
+  TickView first;
+  {
+    std::lock_guard<std::mutex> l(s.mu);
+    first = {s.tick, s.view};
+    next = s.tick + 1;
+  }
+  if (!send(first)) return absl::OkStatus();
+  while (!cancelled() && !draining_) {
+    std::vector<TickView> batch;
+    {
+      std::unique_lock<std::mutex> l(s.mu);
+      s.cv.wait_for(l, std::chrono::milliseconds(200), [&] { return s.closed || s.tick >= next; });
+      for (const TickView& t : s.recent)
+        if (t.tick >= next) batch.push_back(t);
+      if (batch.empty() && s.closed) return absl::OkStatus();
+    }
+    for (const TickView& t : batch) {
+      if (!send(t)) return absl::OkStatus();
+      next = t.tick + 1;
+    }
+  }
+  return absl::OkStatus();
+}
+
+int SessionManager::save_all() {
+  if (options_.snapshot_dir.empty()) return 0;
+  std::vector<std::shared_ptr<ManagedSession>> all;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    for (const auto& [id, s] : sessions_) all.push_back(s);
+  }
+  int saved = 0;
+  for (const auto& s : all) {
+    std::lock_guard<std::timed_mutex> e(s->engine_mu);
+    if (auto st = save(*s); !st.ok()) {
+      spdlog::error("session {}: snapshot failed: {}", s->id, std::string(st.message()));
+      continue;
+    }
+    ++saved;
+  }
+  return saved;
+}
+
+int SessionManager::restore_all() {
+  if (options_.snapshot_dir.empty()) return 0;
+  int n = 0;
+  for (const std::string& path : list_snapshots(options_.snapshot_dir)) {
+    auto s = restore_file(path, Clock::now() + std::chrono::minutes(10));
+    if (!s.ok()) {
+      spdlog::error("{}: not restored: {}", path, std::string(s.status().message()));
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> l(mu_);
+      sessions_[(*s)->id] = *s;
+    }
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+    spdlog::info("session {}: restored from {} at tick {}", (*s)->id, path, (*s)->tick);
+    ++n;
+  }
+  return n;
+}
+
+void SessionManager::reaper() {
+  while (!stop_) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    std::vector<std::string> expired;
+    {
+      std::lock_guard<std::mutex> l(mu_);
+      for (const auto& [id, s] : sessions_)
+        if (s->idle_seconds() > options_.idle_timeout_s) expired.push_back(id);
+    }
+    for (const std::string& id : expired) {
+      spdlog::info("session {}: idle for more than --idle_timeout_s={}, closing", id, options_.idle_timeout_s);
+      (void)close(id);
+    }
+  }
+}
+
+}  // namespace ss::server

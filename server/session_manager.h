@@ -1,0 +1,116 @@
+// The server's sessions: ids, limits (session count, total cache bytes), idle timeout, LRU eviction with a snapshot
+// first, the tick barrier of multi-client sessions, watchers, and snapshots on drain. It decides *when* an engine call
+// runs and on which session; what a step does is the engine's (engine/scenestreamer.h).
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "engine/scenestreamer.h"
+#include "server/fair_slots.h"
+#include "server/metrics.h"
+
+namespace ss::server {
+
+using Clock = std::chrono::steady_clock;
+
+struct ManagerOptions {
+  std::string snapshot_dir;          // empty: no snapshots (eviction then drops the session)
+  int max_sessions = 256;
+  uint64_t max_cache_bytes = uint64_t{8} << 30;
+  double idle_timeout_s = 3600;      // a session unused this long is closed
+  double evict_idle_s = 30;          // a session unused this long may be evicted (LRU) to make room
+  int compute_threads = 2;           // engine calls running at once
+  int default_tick_deadline_ms = 2000;
+};
+
+struct SessionInfo {
+  std::string id;
+  std::string scenario_name;
+  SessionOptions options;
+  int tick_hz = 2;
+  int64_t tick = 0;
+  int step = 0;
+  int num_agents = 0;
+  uint64_t memory_bytes = 0;
+  double idle_seconds = 0;
+  std::vector<int64_t> controlled;
+};
+
+struct TickView {
+  int64_t tick = 0;
+  StepResult view;
+};
+
+struct ManagedSession;
+
+class SessionManager {
+ public:
+  SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics);
+  ~SessionManager();
+
+  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_hz,
+                                  int tick_deadline_ms, const std::string& proposed_id, Clock::time_point deadline,
+                                  std::string* id);
+  // One call's ticks. In a multi-client session the caller waits for the other controllers (or the tick deadline).
+  absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::vector<ControlInput>& controls,
+                                             int num_ticks, Clock::time_point deadline);
+  absl::StatusOr<std::vector<int64_t>> inject(const std::string& id, const InjectRequest& r,
+                                              Clock::time_point deadline);
+  absl::Status state_force(const std::string& id, const StateForceRequest& r);
+  absl::Status close(const std::string& id);
+  absl::StatusOr<std::pair<SessionInfo, TickView>> get(const std::string& id);
+  absl::StatusOr<std::string> fork(const std::string& id, const std::string& proposed_id,
+                                   Clock::time_point deadline);
+  std::vector<SessionInfo> list();
+  // Calls `send` with every tick from the current one on until the session closes, the server drains, `send`
+  // returns false or `cancelled` returns true.
+  absl::Status watch(const std::string& id, const std::function<bool(const TickView&)>& send,
+                     const std::function<bool()>& cancelled);
+
+  void start_draining() { draining_ = true; }
+  bool draining() const { return draining_; }
+  // Saves every session to the snapshot directory (after the gRPC server stopped).
+  int save_all();
+  // Restores every snapshot of the snapshot directory; returns how many.
+  int restore_all();
+  int count();
+  uint64_t total_bytes();
+
+ private:
+  absl::StatusOr<std::shared_ptr<ManagedSession>> find(const std::string& id, Clock::time_point deadline);
+  absl::StatusOr<std::string> new_id(const std::string& proposed);
+  // Evicts idle sessions (LRU) until one more session holding `extra_bytes` fits. Holds mu_.
+  absl::Status make_room_locked(uint64_t extra_bytes);
+  absl::Status evict_locked(const std::shared_ptr<ManagedSession>& s);
+  absl::Status save(ManagedSession& s);
+  absl::StatusOr<std::shared_ptr<ManagedSession>> restore_file(const std::string& path, Clock::time_point deadline);
+  // Runs `fn` on a compute slot (bounded by compute_threads), or DEADLINE_EXCEEDED when none frees up in time.
+  absl::Status compute(Clock::time_point deadline, const std::function<absl::Status()>& fn);
+  absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n);
+  void reaper();
+
+  Engine& engine_;
+  ManagerOptions options_;
+  Metrics& metrics_;
+  FairSlots slots_;
+  std::mutex mu_;
+  std::map<std::string, std::shared_ptr<ManagedSession>> sessions_;
+  std::set<std::string> evicted_;  // saved to the snapshot directory, restored on their next call
+  std::atomic<bool> draining_{false};
+  std::atomic<bool> stop_{false};
+  std::thread reaper_;
+};
+
+}  // namespace ss::server
