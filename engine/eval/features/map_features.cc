@@ -253,7 +253,9 @@ std::vector<std::vector<uint8_t>> traffic_light_violation(std::span<const SceneO
         if (d < best) best = d, on_lane[t] = static_cast<int>(k);
       }
     }
-    for (const auto& [sig, fence] : fences) {
+    for (const auto& entry : fences) {
+      const auto& sig = entry.first;
+      const auto& fence = entry.second;  // (named, not a structured binding: clang cannot capture those in lambdas)
       auto along = [&](size_t t) {
         const Vec2 q = Vec2{states[t].x, states[t].y} - fence[t].start;
         return plane_t(q.x, q.y, fence[t].dir.x, fence[t].dir.y);
