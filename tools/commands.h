@@ -9,6 +9,7 @@ int init_weights_main(int argc, char** argv);
 int simulate_main(int argc, char** argv);
 int bench_main(int argc, char** argv);
 int render_main(int argc, char** argv);
+int dataset_main(int argc, char** argv);
 int eval_main(int argc, char** argv);
 
 }  // namespace ss::cli

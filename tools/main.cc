@@ -16,6 +16,7 @@ constexpr const char* kUsage =
     "  bench [--json]                      step latency, cached vs full recompute, session memory\n"
     "  init-weights --config C --out FILE  random model weights (safetensors; C small|large; --seed S)\n"
     "  render FILE [--step T|--animate]    a scenario or rollout as an SVG picture (map, lights, agents)\n"
+    "  dataset sumo|stats ...              generate WOMD scenarios with SUMO; statistics of scenario files\n"
     "  eval --data F... --json OUT ...     realism (WOSAC 2025), motion metrics, MMD of rollouts or baselines\n"
     "\n"
     "Run `scenestreamer <command> --help` for a command's arguments.\n";
@@ -34,6 +35,7 @@ int main(int argc, char** argv) {
   if (!std::strcmp(cmd, "bench")) return ss::cli::bench_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "init-weights")) return ss::cli::init_weights_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "render")) return ss::cli::render_main(argc - 1, argv + 1);
+  if (!std::strcmp(cmd, "dataset")) return ss::cli::dataset_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "eval")) return ss::cli::eval_main(argc - 1, argv + 1);
   std::fprintf(stderr, "scenestreamer: unknown command '%s'\n\n%s", cmd, kUsage);
   return 2;

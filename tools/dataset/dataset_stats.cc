@@ -1,0 +1,103 @@
+// scenestreamer dataset stats FILE_OR_DIR... [--json] [--markdown]
+// Each argument is one column: a scenario file, or a directory read recursively (its *.json and *.tfrecord* files).
+// TFRecords are read one record at a time, so a dataset of thousands of scenarios never has to fit in memory.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "engine/scenario/read.h"
+#include "engine/scenario/tfrecord.h"
+#include "engine/scenario/womd_proto.h"
+#include "tools/cli_args.h"
+#include "tools/dataset/dataset_commands.h"
+#include "tools/dataset/scenario_stats.h"
+
+namespace ss::dataset {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool is_scenario_file(const std::string& name) {
+  return name.ends_with(".json") || name.find(".tfrecord") != std::string::npos;
+}
+
+absl::StatusOr<std::vector<std::string>> scenario_files(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return absl::NotFoundError(absl::StrCat(path, ": no such file or directory"));
+  if (!fs::is_directory(path, ec)) return std::vector<std::string>{path};
+  std::vector<std::string> files;
+  for (fs::recursive_directory_iterator it(path, fs::directory_options::follow_directory_symlink, ec), end;
+       !ec && it != end; it.increment(ec)) {
+    if (it->is_regular_file(ec) && is_scenario_file(it->path().filename().string())) files.push_back(it->path().string());
+  }
+  if (ec) return absl::InternalError(absl::StrCat(path, ": cannot list: ", ec.message()));
+  if (files.empty()) return absl::InvalidArgumentError(absl::StrCat(path, ": holds no *.json or *.tfrecord* files"));
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+absl::Status add_file(const std::string& path, ScenarioStats* stats) {
+  if (path.ends_with(".json")) {
+    auto s = read_scenarios(path);
+    if (!s.ok()) return s.status();
+    for (const Scenario& x : *s) stats->add(x);
+    return absl::OkStatus();
+  }
+  auto reader = TfRecordReader::open(path);
+  if (!reader.ok()) return reader.status();
+  std::string record;
+  while (true) {
+    const int index = reader->records_read();
+    auto more = reader->next(&record);
+    if (!more.ok()) return more.status();
+    if (!*more) break;
+    auto s = scenario_from_womd_bytes(record, absl::StrCat(path, " record ", index));
+    if (!s.ok()) return s.status();
+    stats->add(*s);
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+int stats_main(int argc, char** argv) {
+  auto args = cli::parse_args(argc, argv, 1, {}, {"json", "markdown", "help"});
+  if (!args.ok() || args->has("help") || args->positional.empty()) {
+    if (!args.ok()) std::fprintf(stderr, "dataset stats: %s\n", std::string(args.status().message()).c_str());
+    std::fputs("usage: scenestreamer dataset stats FILE_OR_DIR... [--json | --markdown]\n"
+               "  Statistics of scenario files, one column per argument (a directory is read recursively):\n"
+               "  agents per scenario by type, signal-controlled lanes per scenario, speeds by type, frames,\n"
+               "  map features per scenario.\n",
+               args.ok() && args->has("help") ? stdout : stderr);
+    return args.ok() && args->has("help") ? 0 : 2;
+  }
+  std::vector<std::pair<std::string, nlohmann::ordered_json>> columns;
+  for (const std::string& p : args->positional) {
+    auto files = scenario_files(p);
+    if (!files.ok()) {
+      std::fprintf(stderr, "dataset stats: %s\n", std::string(files.status().message()).c_str());
+      return 1;
+    }
+    ScenarioStats stats;
+    for (const std::string& f : *files) {
+      if (auto st = add_file(f, &stats); !st.ok()) {
+        std::fprintf(stderr, "dataset stats: %s\n", std::string(st.message()).c_str());
+        return 1;
+      }
+    }
+    columns.emplace_back(p, stats.json());
+  }
+  if (args->has("json")) {
+    nlohmann::ordered_json out = nlohmann::ordered_json::object();
+    for (const auto& [name, j] : columns) out[name] = j;
+    std::puts(out.dump(2).c_str());
+  } else {
+    std::fputs(stats_table(columns, args->has("markdown")).c_str(), stdout);
+  }
+  return 0;
+}
+
+}  // namespace ss::dataset
