@@ -3,6 +3,8 @@
 #include <cmath>
 #include <map>
 
+#include "engine/model/attention_kernels.h"
+
 namespace ss {
 
 RelationFeatures relation_features(const Anchor& q, const Anchor& k) {
@@ -29,6 +31,12 @@ Mat relation_embedding(const Mat& features, const RelationParams& p) {
   return h;
 }
 
+Mat relation_by_step(const RelationParams& p, int steps) {
+  Mat f = Mat::Zero(steps, kRelationFeatures);
+  for (int dt = 0; dt < steps; ++dt) f(dt, 5) = static_cast<float>(dt) / 5.0f;  // as relation_features() writes it
+  return relation_embedding(f, p);
+}
+
 namespace {
 
 // Softmax of each row in place (rows are contiguous, so exp vectorises).
@@ -37,6 +45,26 @@ void softmax_rows(Mat& s) {
     auto row = s.row(i).array();
     row = (row - row.maxCoeff()).exp();
     row /= row.sum();
+  }
+}
+
+// One query with its own key set, all heads at once: scores (heads x m) from the key rows in place (a gather would
+// copy each row for one use), the relation term along the keys, softmax, then the weighted values (added to `out`,
+// heads x dh) and the weighted relation embedding (written to `rel_out`, heads x r).
+void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set, const MatMap& k,
+                const MatMap& v, float scale, Mat& scores, float* out, float* rel_out) {
+  const int m = static_cast<int>(set.keys.size());
+  scores.resize(shape.heads, m);
+  kernel_key_scores(shape, q, k.data(), set.keys.data(), m, scores.data());
+  if (!set.uniform) kernel_relation_scores(shape, u, set.relation.data(), m, scores.data());
+  scores *= scale;
+  softmax_rows(scores);
+  kernel_weighted_values(shape, scores.data(), v.data(), set.keys.data(), m, out);
+  if (set.uniform) {
+    for (int h = 0; h < shape.heads; ++h)  // the weights sum to one
+      Eigen::Map<Vec>(rel_out + h * shape.r, shape.r) = set.relation.row(0);
+  } else {
+    kernel_weighted_relation(shape, scores.data(), set.relation.data(), m, rel_out);
   }
 }
 
@@ -49,6 +77,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
   const int dh = d / heads;
   const int r = p.rel_key.in;
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
+  const AttentionShape shape{heads, dh, r};
   const Mat q = linear(x, p.query);
   const Mat q_rel = linear(x, p.rel_query);
   const MatMap w_rk = p.rel_key.w();    // [d, r]
@@ -62,37 +91,17 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
   std::map<const QueryKeys*, std::vector<int>> groups;
   for (int i = 0; i < n; ++i) groups[query_keys[i]].push_back(i);
 
-  Mat o(n, d);
-  Mat kg, vg, s, weighted_h, og;
+  Mat o = Mat::Zero(n, d);        // attention-weighted values
+  Mat rel = Mat::Zero(n, heads * r);  // attention-weighted relation embeddings, projected by W_rv below
+  Mat kg, vg, s, og, scores;
   for (const auto& [set, rows] : groups) {
     const int m = static_cast<int>(set->keys.size());
     const int g = static_cast<int>(rows.size());
-    if (m == 0) {
-      for (int i : rows)
-        for (int h = 0; h < heads; ++h) o.row(i).segment(h * dh, dh) = VecMap(p.rel_value.bias + h * dh, dh);
-      continue;
-    }
+    if (m == 0) continue;  // nothing to read: the output is the relation-value bias alone
     if (g <= 2) {
-      // Few queries: read the key rows in place (a gather would copy every head's columns for one use each).
-      Vec sc(m), rel(m), wh(r), acc(dh);
-      for (int i : rows) {
-        for (int h = 0; h < heads; ++h) {
-          const auto qh = q.row(i).segment(h * dh, dh);
-          for (int j = 0; j < m; ++j) sc[j] = qh.dot(k.row(set->keys[j]).segment(h * dh, dh));
-          if (!set->uniform) sc.noalias() += u.row(i).segment(h * r, r) * set->relation.transpose();
-          sc *= scale;
-          sc = (sc.array() - sc.maxCoeff()).exp();
-          sc /= sc.sum();
-          acc.setZero();
-          for (int j = 0; j < m; ++j) acc.noalias() += sc[j] * v.row(set->keys[j]).segment(h * dh, dh);
-          if (set->uniform)
-            wh = set->relation.row(0);
-          else
-            wh.noalias() = sc * set->relation;
-          acc.noalias() += wh * w_rv.middleRows(h * dh, dh).transpose();
-          o.row(i).segment(h * dh, dh) = acc + VecMap(p.rel_value.bias + h * dh, dh);
-        }
-      }
+      for (int i : rows)
+        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, k, v, scale, scores, o.row(i).data(),
+                   rel.row(i).data());
       continue;
     }
     // Keys 0..m-1 of k in order (a whole map): read in place; otherwise gather the rows once for the group.
@@ -110,15 +119,19 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       s *= scale;
       softmax_rows(s);
       og.noalias() = s * vv.middleCols(h * dh, dh);  // g x dh
-      if (set->uniform)
-        weighted_h = set->relation.row(0).replicate(g, 1);  // the weights sum to one
-      else
-        weighted_h.noalias() = s * set->relation;  // g x r
-      og.noalias() += weighted_h * w_rv.middleRows(h * dh, dh).transpose();
-      og.rowwise() += VecMap(p.rel_value.bias + h * dh, dh);
       for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = og.row(c);
+      if (set->uniform) {
+        for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = set->relation.row(0);
+      } else {
+        og.noalias() = s * set->relation;  // g x r
+        for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = og.row(c);
+      }
     }
   }
+  // out_i^h += W_rv^h (sum_j a_ij h_ij) + b_rv^h
+  for (int h = 0; h < heads; ++h)
+    o.middleCols(h * dh, dh).noalias() += rel.middleCols(h * r, r) * w_rv.middleRows(h * dh, dh).transpose();
+  o.rowwise() += VecMap(p.rel_value.bias, d);
   return linear(o, p.output);
 }
 

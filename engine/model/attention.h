@@ -45,12 +45,15 @@ RelationFeatures relation_features(const Anchor& q, const Anchor& k);
 
 // h = relu(fc2(relu(fc1(f)))) for a batch of feature rows (m x 7 -> m x relation_dim).
 Mat relation_embedding(const Mat& features, const RelationParams& p);
+// h for a pair of which at least one side has no position: it depends only on the step difference dt. Row dt
+// (0 <= dt < steps) of the result (steps x relation_dim) is h of f = (0, 0, 0, 0, 0, dt / 5, 0).
+Mat relation_by_step(const RelationParams& p, int steps);
 
-// The keys one query reads: rows of the key/value matrices and their relation embeddings (one row per key).
+// The keys one query reads: rows of the key/value matrices and their relation embeddings.
 struct QueryKeys {
-  std::vector<int> keys;
-  Mat relation;          // keys.size() x relation_dim
-  bool uniform = false;  // every row of `relation` is the same (queries without a position): the relation term is
+  std::vector<int> keys; // ascending
+  Mat relation;          // keys.size() x relation_dim: row j is h for key j; a single row when `uniform`
+  bool uniform = false;  // every key has the same relation (queries without a position): the relation term is
                          // then one constant per query and head, which the softmax cancels, and is skipped
 };
 

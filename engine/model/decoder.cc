@@ -148,12 +148,23 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
 
     auto set = std::make_unique<QueryKeys>();
     set->keys = keys;
-    Mat f(keys.size(), kRelationFeatures);
+    set->relation.resize(keys.size(), self_relation_by_step_.cols());
+    // Pairs with a position on both sides go through the relation MLP; the others depend only on the step
+    // difference and come from the table.
+    std::vector<int> posed;
     for (size_t j = 0; j < keys.size(); ++j) {
-      const RelationFeatures rf = relation_features(anchors[c + i], anchors[keys[j]]);
-      f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+      if (anchors[c + i].has_pose && anchors[keys[j]].has_pose) posed.push_back(static_cast<int>(j));
+      else set->relation.row(j) = self_relation_by_step_.row(q.step - token(keys[j]).step);
     }
-    set->relation = relation_embedding(f, self_relation_);
+    if (!posed.empty()) {
+      Mat f(posed.size(), kRelationFeatures);
+      for (size_t e = 0; e < posed.size(); ++e) {
+        const RelationFeatures rf = relation_features(anchors[c + i], anchors[keys[posed[e]]]);
+        f.row(e) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+      }
+      const Mat h = relation_embedding(f, self_relation_);
+      for (size_t e = 0; e < posed.size(); ++e) set->relation.row(posed[e]) = h.row(e);
+    }
     out.per_query.push_back(set.get());
     out.sets.push_back(std::move(set));
   }
@@ -189,16 +200,19 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
       for (int pos : nearest_within(dist, order, limit_)) set->keys.push_back(near[pos]);
       std::sort(set->keys.begin(), set->keys.end());
     }
-    // Map tokens are static: their step is the query's, so the step difference is 0.
-    const Anchor qa(q.has_pose, q.pose, 0);  // map anchors carry step 0: the step difference is 0
-    Mat f(set->keys.size(), kRelationFeatures);
-    for (size_t j = 0; j < set->keys.size(); ++j) {
-      const RelationFeatures rf =
-          relation_features(qa, map.anchors[set->keys[j]]);
-      f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+    if (q.has_pose) {
+      // Map tokens are static: they carry the query's step, so the step difference is 0.
+      const Anchor qa(true, q.pose, 0);
+      Mat f(set->keys.size(), kRelationFeatures);
+      for (size_t j = 0; j < set->keys.size(); ++j) {
+        const RelationFeatures rf = relation_features(qa, map.anchors[set->keys[j]]);
+        f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+      }
+      set->relation = relation_embedding(f, cross_relation_);
+    } else {
+      set->relation = cross_relation_at_rest_;  // no position: every map key has the same relation
+      set->uniform = true;
     }
-    set->relation = relation_embedding(f, cross_relation_);
-    set->uniform = !q.has_pose;  // no position: every map key has the same relation
     if (!q.has_pose) whole_map = set.get();
     else by_pose[{q.pose.x, q.pose.y, q.pose.heading}] = set.get();
     out.per_query.push_back(set.get());

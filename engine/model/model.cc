@@ -39,6 +39,8 @@ Model::Model(Weights w) : weights_(std::move(w)) {
 
   self_relation_ = {lin("decoder.self_relation.fc1"), lin("decoder.self_relation.fc2")};
   cross_relation_ = {lin("decoder.cross_relation.fc1"), lin("decoder.cross_relation.fc2")};
+  self_relation_by_step_ = relation_by_step(self_relation_, c.window_steps);
+  cross_relation_at_rest_ = relation_by_step(cross_relation_, 1);
   for (int l = 0; l < c.decoder_layers; ++l) {
     const std::string L = absl::StrCat("decoder.layers.", l);
     decoder_layers_.push_back({norm(L + ".cross_norm"), norm(L + ".self_norm"), norm(L + ".ffn_norm"),

@@ -109,6 +109,8 @@ class Model {
   LinearParams poly_fc1_, poly_fc2_, poly_fc3_, poly_fc4_;
   NormParams poly_norm1_, poly_norm2_, encoder_final_norm_, decoder_final_norm_;
   RelationParams encoder_relation_, self_relation_, cross_relation_;
+  Mat self_relation_by_step_;   // window x relation_dim: h of a self-attention pair without positions, by step difference
+  Mat cross_relation_at_rest_;  // 1 x relation_dim: h of a map key seen from a query without a position
   std::vector<EncoderLayerParams> encoder_layers_;
   std::vector<DecoderLayerParams> decoder_layers_;
   const float* map_id_embedding_ = nullptr;

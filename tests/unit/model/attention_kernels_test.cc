@@ -1,0 +1,74 @@
+// The register-blocked attention kernels against their plain forms, for the shapes of both configurations and a
+// shape only the plain forms serve, with key counts around the vector width.
+#include "engine/model/attention_kernels.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <vector>
+
+namespace ss {
+namespace {
+
+struct Case {
+  AttentionShape shape;
+  int m;
+};
+
+std::vector<float> random_floats(size_t n, std::mt19937& rng) {
+  std::normal_distribution<float> dist(0, 1);
+  std::vector<float> v(n);
+  for (float& x : v) x = dist(rng);
+  return v;
+}
+
+void expect_near(const std::vector<float>& a, const std::vector<float>& b, const char* what) {
+  ASSERT_EQ(a.size(), b.size());
+  float worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
+  EXPECT_LT(worst, 1e-4f) << what;
+}
+
+class KernelTest : public ::testing::TestWithParam<Case> {};
+
+TEST_P(KernelTest, FastFormsEqualPlainForms) {
+  const auto [s, m] = GetParam();
+  std::mt19937 rng(7 + m);
+  const int rows = 3 * m + 5;  // keys are scattered rows of a larger matrix, some repeated
+  const auto k = random_floats(static_cast<size_t>(rows) * s.d(), rng);
+  const auto v = random_floats(static_cast<size_t>(rows) * s.d(), rng);
+  const auto q = random_floats(s.d(), rng);
+  const auto u = random_floats(static_cast<size_t>(s.heads) * s.r, rng);
+  const auto rel = random_floats(static_cast<size_t>(m) * s.r, rng);
+  const auto a = random_floats(static_cast<size_t>(s.heads) * m, rng);
+  std::vector<int> keys(m);
+  for (int j = 0; j < m; ++j) keys[j] = (j * 7 + j / 3) % rows;
+
+  std::vector<float> fast(static_cast<size_t>(s.heads) * m), plain(fast.size());
+  kernel_key_scores(s, q.data(), k.data(), keys.data(), m, fast.data());
+  kernel_key_scores_plain(s, q.data(), k.data(), keys.data(), m, plain.data());
+  expect_near(fast, plain, "key scores");
+
+  kernel_relation_scores(s, u.data(), rel.data(), m, fast.data());
+  kernel_relation_scores_plain(s, u.data(), rel.data(), m, plain.data());
+  expect_near(fast, plain, "relation scores (added to the key scores)");
+
+  std::vector<float> out_fast(s.d(), 0.5f), out_plain(s.d(), 0.5f);  // the values are added to what is there
+  kernel_weighted_values(s, a.data(), v.data(), keys.data(), m, out_fast.data());
+  kernel_weighted_values_plain(s, a.data(), v.data(), keys.data(), m, out_plain.data());
+  expect_near(out_fast, out_plain, "weighted values");
+
+  std::vector<float> rel_fast(static_cast<size_t>(s.heads) * s.r, 9.0f), rel_plain(rel_fast.size(), -9.0f);
+  kernel_weighted_relation(s, a.data(), rel.data(), m, rel_fast.data());
+  kernel_weighted_relation_plain(s, a.data(), rel.data(), m, rel_plain.data());
+  expect_near(rel_fast, rel_plain, "weighted relation (overwrites its output)");
+}
+
+INSTANTIATE_TEST_SUITE_P(Shapes, KernelTest,
+                         ::testing::Values(Case{{4, 32, 32}, 1}, Case{{4, 32, 32}, 15}, Case{{4, 32, 32}, 16},
+                                           Case{{4, 32, 32}, 17}, Case{{4, 32, 32}, 250}, Case{{4, 16, 32}, 33},
+                                           Case{{8, 16, 32}, 40}, Case{{2, 24, 8}, 20}, Case{{4, 32, 32}, 0}));
+
+}  // namespace
+}  // namespace ss
