@@ -222,6 +222,13 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
 }
 
 Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToken>& tokens) const {
+  std::vector<int> all(tokens.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  return decode(map, cache, tokens, all);
+}
+
+Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToken>& tokens,
+                  std::span<const int> outputs) const {
   const ModelConfig& c = config();
   const int n = static_cast<int>(tokens.size());
   if (n == 0) return Mat(0, c.d_model);
@@ -229,6 +236,8 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
   const KeySets self = self_keys(cache, tokens);
   const KeySets cross = cross_keys(map, tokens);
   const int total = cache.size() + n;
+  std::vector<const QueryKeys*> self_out;  // the last layer's self-attention runs for the output rows only
+  for (int i : outputs) self_out.push_back(self.per_query[i]);
 
   Mat x = embed(tokens);
   for (int l = 0; l < c.decoder_layers; ++l) {
@@ -240,8 +249,14 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
     const Mat k = linear(xs, L.self.key), v = linear(xs, L.self.value);
     cache.k[l].insert(cache.k[l].end(), k.data(), k.data() + k.size());
     cache.v[l].insert(cache.v[l].end(), v.data(), v.data() + v.size());
-    x += relative_attention(xs, L.self, c.heads, MatMap(cache.k[l].data(), total, c.d_model),
-                            MatMap(cache.v[l].data(), total, c.d_model), self.per_query);
+    const MatMap keys(cache.k[l].data(), total, c.d_model), values(cache.v[l].data(), total, c.d_model);
+    if (l + 1 == c.decoder_layers) {
+      // Every token's keys and values are in the cache now; what follows only shapes the outputs asked for.
+      x = x(outputs, Eigen::placeholders::all).eval();
+      x += relative_attention(xs(outputs, Eigen::placeholders::all), L.self, c.heads, keys, values, self_out);
+    } else {
+      x += relative_attention(xs, L.self, c.heads, keys, values, self.per_query);
+    }
     Mat f = linear(layer_norm(x, L.ffn_norm), L.ffn1);
     relu_inplace(f);
     x += linear(f, L.ffn2);

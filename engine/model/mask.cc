@@ -1,7 +1,6 @@
 #include "engine/model/mask.h"
 
 #include <algorithm>
-#include <numeric>
 
 namespace ss {
 
@@ -34,19 +33,28 @@ bool is_spatial_pair(const DecoderToken& q, const DecoderToken& k) {
 
 std::vector<int> nearest_within(std::span<const double> distances, std::span<const int64_t> order,
                                 const NeighbourLimit& limit) {
-  const int n = static_cast<int>(distances.size());
-  std::vector<int> idx(n);
-  std::iota(idx.begin(), idx.end(), 0);
+  // Sorted by distance, the keys within the radius come first; so the kept set is the nearest min(k, inside) of the
+  // keys inside, topped up to `always` from the nearest outside. Only a cut needs a selection, never a full sort.
   auto closer = [&](int a, int b) {
     return distances[a] < distances[b] || (distances[a] == distances[b] && order[a] < order[b]);
   };
-  const int cap = std::min(n, limit.k);
-  std::partial_sort(idx.begin(), idx.begin() + cap, idx.end(), closer);
-  int kept = 0;
-  while (kept < cap && (kept < limit.always || distances[idx[kept]] <= limit.radius)) ++kept;
-  idx.resize(kept);
-  std::sort(idx.begin(), idx.end());
-  return idx;
+  std::vector<int> inside, outside;
+  for (int i = 0; i < static_cast<int>(distances.size()); ++i)
+    (distances[i] <= limit.radius ? inside : outside).push_back(i);
+  const int k = limit.k;
+  if (static_cast<int>(inside.size()) > k) {
+    std::nth_element(inside.begin(), inside.begin() + (k - 1), inside.end(), closer);
+    inside.resize(k);
+  } else {
+    const int wanted = std::min(limit.always, k) - static_cast<int>(inside.size());
+    const int extra = std::min(wanted, static_cast<int>(outside.size()));
+    if (extra > 0) {
+      std::nth_element(outside.begin(), outside.begin() + (extra - 1), outside.end(), closer);
+      inside.insert(inside.end(), outside.begin(), outside.begin() + extra);
+    }
+  }
+  std::sort(inside.begin(), inside.end());
+  return inside;
 }
 
 }  // namespace ss

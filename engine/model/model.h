@@ -70,6 +70,11 @@ class Model {
   // Incremental forward: runs `tokens` (new tokens of one session, in sequence order) through the decoder, reading
   // and extending `cache`. Returns their final hidden states (n x d). Assigns each token's seq.
   Mat decode(const MapContext& map, KvCache& cache, std::vector<DecoderToken>& tokens) const;
+  // The same, returning only the hidden states of the tokens at `outputs` (indices into `tokens`, rows in that
+  // order). Tokens whose output nobody reads (state-forced agents, a replay) skip their last layer's self-attention
+  // and feed-forward; the cache is the same either way.
+  Mat decode(const MapContext& map, KvCache& cache, std::vector<DecoderToken>& tokens,
+             std::span<const int> outputs) const;
   // Full recompute: the whole history at once with a fresh cache (to test and measure the incremental path).
   Mat decode_full(const MapContext& map, std::vector<DecoderToken>& tokens) const;
   KvCache new_cache() const;

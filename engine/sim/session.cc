@@ -157,15 +157,21 @@ DecoderToken Session::motion_token(const Agent& a) const {
 }
 
 Mat Session::decode(std::vector<DecoderToken>& tokens) {
+  std::vector<int> all(tokens.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  return decode(tokens, all);
+}
+
+Mat Session::decode(std::vector<DecoderToken>& tokens, std::span<const int> outputs) {
   const int window = effective_window();
   cache_.evict_before(tokens.front().step - window + 1);
-  Mat h = model_->decode(*map_, cache_, tokens);
-  replay_.push_back({tokens.front().step, tokens});
-  if (probe_) {
-    probe_->batches.push_back(tokens);
-    probe_->outputs.push_back(h);
-  }
-  return h;
+  // The probe records every token's output; the caller still gets the rows it asked for.
+  Mat h = probe_ ? model_->decode(*map_, cache_, tokens) : model_->decode(*map_, cache_, tokens, outputs);
+  replay_.push_back({tokens.front().step, tokens});  // after decode, which assigns the tokens' seq
+  if (!probe_) return h;
+  probe_->batches.push_back(tokens);
+  probe_->outputs.push_back(h);
+  return h(outputs, Eigen::placeholders::all);
 }
 
 void Session::trim_replay() {
@@ -177,11 +183,9 @@ void Session::trim_replay() {
   replay_.erase(replay_.begin(), replay_.begin() + drop);
 }
 
-void Session::sample_motions(const Mat& h, const std::vector<int>& agent_rows) {
-  if (agent_rows.empty()) return;
-  Mat rows(agent_rows.size(), h.cols());
-  for (size_t i = 0; i < agent_rows.size(); ++i) rows.row(i) = h.row(agent_rows[i]);
-  const Mat logits = model_->motion_logits(rows);
+void Session::sample_motions(const Mat& h) {
+  if (h.rows() == 0) return;
+  const Mat logits = model_->motion_logits(h);
   for (size_t i = 0; i < agents_.size(); ++i) {
     Agent& a = agents_[i];
     a.next_motion = a.controlled ? -1
@@ -240,7 +244,7 @@ bool Session::sample_agent(const Mat& h_last, bool force_continue, const InjectR
     ms.pose = map_->segments[seg].pose;
     ms.map_id = seg;
     tok = {ms};
-    decode(tok);
+    decode(tok, {});
   } else {
     // Where a new agent may appear: within the region of interest, and where the request says.
     Mat pointer = model_->map_segment_logits(h_type, *map_);
@@ -321,7 +325,12 @@ absl::Status Session::decode_step(bool sample_lights, bool allow_new, int force_
   sos.step = step_;
   tokens.push_back(sos);
   for (size_t i = 0; i < agents_.size(); ++i) group_tokens(agents_[i], static_cast<int>(i), tokens);
-  const Mat h = decode(tokens);
+  // Outputs read: the lights' (their next states) and the group's last token's (whether another agent follows).
+  std::vector<int> outputs;
+  if (sample_lights)
+    for (int i = 0; i < num_lights; ++i) outputs.push_back(i);
+  outputs.push_back(static_cast<int>(tokens.size()) - 1);
+  const Mat h = decode(tokens, outputs);
   if (sample_lights) sample_light_states(h.topRows(num_lights));
   last_group_output_ = h.bottomRows(1);
   // Then new agents, one token at a time; then batch 2, EOS and every agent's motion token.
@@ -366,8 +375,7 @@ void Session::finish_step() {
     motion_rows.push_back(static_cast<int>(tokens.size()));
     tokens.push_back(motion_token(a));
   }
-  const Mat h = decode(tokens);
-  sample_motions(h, motion_rows);
+  sample_motions(decode(tokens, motion_rows));
 }
 
 void Session::sample_light_states(const Mat& h) {

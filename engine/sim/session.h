@@ -149,8 +149,10 @@ class Session {
   };
 
   Session() = default;
-  // The decoder call every token goes through; keeps the batch for save/restore.
+  // The decoder call every token goes through; keeps the batch for save/restore. Returns the hidden states of the
+  // tokens at `outputs` (rows in that order); by default every token's.
   Mat decode(std::vector<DecoderToken>& tokens);
+  Mat decode(std::vector<DecoderToken>& tokens, std::span<const int> outputs);
   void evict();
   Vec2 roi_centre() const;
   int effective_window() const;
@@ -170,7 +172,7 @@ class Session {
   void undo_to(int cache_size, size_t replay_size);
   // Samples one new agent after the group's last output `h_last`; returns false when the model (or the cap) ends.
   bool sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order, int64_t* new_id);
-  void sample_motions(const Mat& h, const std::vector<int>& agent_rows);
+  void sample_motions(const Mat& h);  // h: the agents' motion-token outputs, in agent order
   int allocate_slot();
   absl::Status check_state(const StepState& s, const std::string& what) const;
 

@@ -316,7 +316,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
     if (b.tokens.front().seq != expected) return bad("token batches are not contiguous");
     s->cache_.evict_before(b.step - window + 1);
     std::vector<DecoderToken> tokens = b.tokens;
-    model->decode(*map, s->cache_, tokens);
+    model->decode(*map, s->cache_, tokens, {});  // only the cache is wanted
   }
   if (s->eos_cache_size_ < 0 || s->eos_cache_size_ > s->cache_.size()) return bad("cache position out of range");
   return s;

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <random>
+
 #include "engine/model/attention.h"
 
 namespace ss {
@@ -89,6 +92,38 @@ TEST(Neighbours, NearestWithinRadiusKeepsTheClosestEight) {
   EXPECT_EQ(nearest_within(far, std::vector<int64_t>{0, 1, 2}, limit), (std::vector<int>{0, 1}));  // always 2
   std::vector<double> ties = {2, 2, 2};
   EXPECT_EQ(nearest_within(ties, std::vector<int64_t>{9, 3, 5}, {1, 10, 0}), (std::vector<int>{1}));  // by order
+}
+
+// The rule as the paper states it (sort everything by distance, then cut), against which the selection is checked.
+std::vector<int> nearest_within_by_sorting(const std::vector<double>& d, const std::vector<int64_t>& order,
+                                           const NeighbourLimit& limit) {
+  std::vector<int> idx(d.size());
+  for (size_t i = 0; i < d.size(); ++i) idx[i] = static_cast<int>(i);
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return d[a] < d[b] || (d[a] == d[b] && order[a] < order[b]); });
+  size_t kept = 0;
+  const size_t cap = std::min(d.size(), static_cast<size_t>(limit.k));
+  while (kept < cap && (kept < static_cast<size_t>(limit.always) || d[idx[kept]] <= limit.radius)) ++kept;
+  idx.resize(kept);
+  std::sort(idx.begin(), idx.end());
+  return idx;
+}
+
+TEST(Neighbours, SelectionEqualsSortingAndCutting) {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const int n = static_cast<int>(rng() % 300);
+    const NeighbourLimit limit{1 + static_cast<int>(rng() % 160), static_cast<double>(rng() % 80),
+                               static_cast<int>(rng() % 12)};
+    std::vector<double> d(n);
+    std::vector<int64_t> order(n);
+    for (int i = 0; i < n; ++i) {
+      d[i] = static_cast<double>(rng() % 100);  // whole metres: many ties, some exactly on the radius
+      order[i] = i;                             // the tie-break key is unique (a sequence number, a segment index)
+    }
+    std::shuffle(order.begin(), order.end(), rng);
+    ASSERT_EQ(nearest_within(d, order, limit), nearest_within_by_sorting(d, order, limit))
+        << "n " << n << " k " << limit.k << " radius " << limit.radius << " always " << limit.always;
+  }
 }
 
 TEST(Relations, TranslationAndRotationInvariant) {

@@ -77,6 +77,36 @@ Scenario shifted(Scenario s, double dx, double dy) {
   return s;
 }
 
+// Asking for some outputs only (the others skip their last layer's self-attention and feed-forward) gives the same
+// rows as asking for all, and the same cache. Large configuration: its kernels take the 32-wide head path.
+TEST(Parity, OutputSubsetMatchesAllOutputs) {
+  testing::World w = testing::load_world("large");
+  SessionOptions o;
+  o.seed = 5;
+  Session::Probe probe;
+  auto s = Session::create(w.model, w.scenario, w.map, o, &probe);
+  ASSERT_TRUE(s.ok()) << s.status();
+  for (int step = 3; step < 6; ++step) ASSERT_TRUE((*s)->step({testing::sdc_control(w, step)}).ok());
+  KvCache all_cache = w.model->new_cache(), some_cache = w.model->new_cache();
+  size_t checked = 0;
+  for (const auto& batch : probe.batches) {
+    std::vector<DecoderToken> a = batch, b = batch;
+    std::vector<int> some;
+    for (int i = static_cast<int>(batch.size()) - 1; i >= 0; i -= 3) some.push_back(i);  // descending, a gap of 2
+    const Mat all = w.model->decode(*w.map, all_cache, a);
+    const Mat part = w.model->decode(*w.map, some_cache, b, some);
+    ASSERT_EQ(part.rows(), static_cast<Eigen::Index>(some.size()));
+    for (size_t r = 0; r < some.size(); ++r, ++checked)
+      EXPECT_LT((part.row(r) - all.row(some[r])).cwiseAbs().maxCoeff(), 1e-5) << "token " << some[r];
+  }
+  EXPECT_GT(checked, 100u);
+  ASSERT_EQ(all_cache.size(), some_cache.size());
+  for (size_t l = 0; l < all_cache.k.size(); ++l) {
+    EXPECT_EQ(all_cache.k[l], some_cache.k[l]) << "layer " << l;
+    EXPECT_EQ(all_cache.v[l], some_cache.v[l]) << "layer " << l;
+  }
+}
+
 TEST(Parity, DecoderIsTranslationInvariant) {
   testing::World w = testing::load_world("small");
   testing::World moved = w;
