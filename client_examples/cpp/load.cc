@@ -5,47 +5,34 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
-#include "grpcpp/grpcpp.h"
-#include "scenestreamer/v1/simulator.grpc.pb.h"
+#include "client_common.h"
 
 namespace pb = scenestreamer::v1;
 using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
-  int clients = 4, steps = 20;
-  std::string target = "127.0.0.1:50051", scenario;
-  bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    const bool has = i + 1 < argc;
-    if (!std::strcmp(argv[i], "--json")) json = true;
-    else if (!std::strcmp(argv[i], "--clients") && has) clients = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--steps") && has) steps = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--target") && has) target = argv[++i];
-    else if (!std::strcmp(argv[i], "--scenario") && has) scenario = argv[++i];
-    else {
-      std::fprintf(stderr, "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME]\n");
-      return 2;
-    }
+  client::Flags flags;
+  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario"}, {"json"}, &flags)) {
+    std::fprintf(stderr, "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME]\n");
+    return 2;
   }
+  const int clients = client::flag_int(flags, "clients", 4);
+  const int steps = client::flag_int(flags, "steps", 20);
+  const std::string target = client::flag_string(flags, "target", client::kDefaultTarget);
+  std::string scenario = client::flag_string(flags, "scenario", "");
+  const bool json = flags.switches.count("json") > 0;
   if (clients < 1 || steps < 1) return std::fprintf(stderr, "--clients and --steps must be positive\n"), 2;
-  auto channel = grpc::CreateChannel(target, grpc::InsecureChannelCredentials());
-  auto stub = pb::Simulator::NewStub(channel);
+  auto stub = client::connect(target);
   if (scenario.empty()) {
-    grpc::ClientContext ctx;
-    pb::ListScenariosResponse list;
-    auto st = stub->ListScenarios(&ctx, {}, &list);
-    if (!st.ok() || list.scenarios_size() == 0)
+    auto st = client::first_scenario(*stub, &scenario);
+    if (!st.ok() || scenario.empty())
       return std::fprintf(stderr, "ListScenarios on %s: %s\n", target.c_str(), st.error_message().c_str()), 1;
-    scenario = list.scenarios(0).name();
   }
   std::atomic<int> errors{0};
   std::mutex mu;
@@ -71,17 +58,7 @@ int main(int argc, char** argv) {
       pb::Tick tick = session.initial();
       std::vector<double> mine;
       for (int i = 0; i < steps; ++i) {
-        pb::StepSceneRequest req;
-        req.set_session_id(session.session_id());
-        for (const pb::Agent& a : tick.agents())
-          if (a.controlled()) {
-            pb::ControlledPose* p = req.add_poses();
-            p->set_agent_id(a.id());
-            p->set_x(a.state().x() + 0.5 * a.state().vx());
-            p->set_y(a.state().y() + 0.5 * a.state().vy());
-            p->set_heading(a.state().heading());
-            p->set_speed(std::hypot(a.state().vx(), a.state().vy()));
-          }
+        const pb::StepSceneRequest req = client::keep_heading_and_speed(session.session_id(), tick);
         pb::StepSceneResponse resp;
         grpc::ClientContext ctx;
         ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(300));
@@ -94,11 +71,7 @@ int main(int argc, char** argv) {
         }
         tick = resp.ticks(resp.ticks_size() - 1);
       }
-      grpc::ClientContext ctx;
-      pb::CloseSessionRequest close;
-      close.set_session_id(session.session_id());
-      pb::CloseSessionResponse closed;
-      if (auto st = stub->CloseSession(&ctx, close, &closed); !st.ok()) error("CloseSession", st);
+      if (auto st = client::close_session(*stub, session.session_id()); !st.ok()) error("CloseSession", st);
       std::lock_guard<std::mutex> l(mu);
       latencies_ms.insert(latencies_ms.end(), mine.begin(), mine.end());
     });

@@ -67,33 +67,37 @@ absl::Status read_file(const std::string& path, std::vector<Scenario>* out) {
   return read_tfrecord(path, out);
 }
 
-absl::Status read_directory(const std::string& dir, std::vector<Scenario>* out) {
+absl::Status read_path(const std::string& path, std::vector<Scenario>* out) {
+  auto files = list_scenario_files(path, /*recursive=*/false);
+  if (!files.ok()) return files.status();
+  for (const std::string& f : *files)
+    if (auto st = read_file(f, out); !st.ok()) return st;
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<std::string>> list_scenario_files(const std::string& path, bool recursive) {
   std::error_code ec;
-  std::vector<std::pair<std::string, std::string>> files;  // (name, path)
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) return not_found(path);
+  if (!fs::is_directory(st)) return std::vector<std::string>{path};
+  std::vector<std::string> files;
+  // One iterator for both cases: when not recursive, it is kept from descending into each directory it meets.
+  for (fs::recursive_directory_iterator it(path, fs::directory_options::follow_directory_symlink, ec), end;
+       !ec && it != end; it.increment(ec)) {
+    if (!recursive) it.disable_recursion_pending();
     const std::string name = it->path().filename().string();
     if (!is_json_name(name) && !is_tfrecord_name(name)) continue;
     std::error_code fec;
     if (!it->is_regular_file(fec)) continue;  // also follows symlinks
-    files.emplace_back(name, it->path().string());
+    files.push_back(it->path().string());
   }
-  if (ec) return absl::InternalError(absl::StrCat(dir, ": cannot list the directory: ", ec.message()));
-  if (files.empty()) return absl::InvalidArgumentError(absl::StrCat(dir, ": holds no *.json or *.tfrecord* files"));
+  if (ec) return absl::InternalError(absl::StrCat(path, ": cannot list the directory: ", ec.message()));
+  if (files.empty()) return absl::InvalidArgumentError(absl::StrCat(path, ": holds no *.json or *.tfrecord* files"));
   std::sort(files.begin(), files.end());
-  for (const auto& [name, path] : files)
-    if (auto st = read_file(path, out); !st.ok()) return st;
-  return absl::OkStatus();
+  return files;
 }
-
-absl::Status read_path(const std::string& path, std::vector<Scenario>* out) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) return not_found(path);
-  if (fs::is_directory(st)) return read_directory(path, out);
-  return read_file(path, out);
-}
-
-}  // namespace
 
 absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::string& path) {
   std::vector<Scenario> out;

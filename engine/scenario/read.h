@@ -17,6 +17,11 @@ absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::string& path);
 // Reads every scenario of every file given; a directory contributes its *.json and *.tfrecord* files in name order.
 absl::StatusOr<std::vector<Scenario>> read_scenarios(const std::vector<std::string>& paths);
 
+// The scenario files `path` names, sorted by path: `path` itself when it is not a directory; otherwise the *.json and
+// *.tfrecord* regular files in it (symlinks followed) and, with `recursive`, in its subdirectories too. NOT_FOUND if
+// `path` does not exist; INVALID_ARGUMENT if a directory holds no scenario files.
+absl::StatusOr<std::vector<std::string>> list_scenario_files(const std::string& path, bool recursive);
+
 // Writes scenarios as one WOMD TFRecord file (one Scenario proto per record).
 absl::Status write_scenarios_tfrecord(const std::string& path, const std::vector<Scenario>& scenarios);
 

@@ -1,16 +1,13 @@
 #include "engine/scenario/tfrecord.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <array>
 #include <cerrno>
 #include <cstring>
-#include <random>
 #include <sys/stat.h>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "engine/io/file_io.h"
 
 namespace ss {
 namespace {
@@ -92,21 +89,6 @@ absl::Status check_data_crc(std::string_view data, const char* footer, const std
                absl::StrFormat("data CRC mismatch (stored 0x%08x, computed 0x%08x) over %d bytes: the data is corrupt",
                                stored, computed, data.size()));
   return absl::OkStatus();
-}
-
-absl::Status errno_status(int err, const std::string& what) {
-  std::string msg = absl::StrCat(what, ": ", std::strerror(err));
-  switch (err) {
-    case ENOENT:
-    case ENOTDIR:
-      return absl::NotFoundError(msg);
-    case EACCES:
-    case EPERM:
-    case EROFS:
-      return absl::PermissionDeniedError(msg);
-    default:
-      return absl::InternalError(msg);
-  }
 }
 
 }  // namespace
@@ -231,49 +213,13 @@ absl::Status write_tfrecord_file(const std::string& path, const std::vector<std:
     if (records[i].size() > kMaxTfRecordLength)
       return absl::InvalidArgumentError(absl::StrCat(path, " record ", i, ": ", records[i].size(),
                                                      " bytes exceeds the limit of ", kMaxTfRecordLength));
-  // The temporary file sits in the target's directory so that rename() is atomic (same filesystem). open() with
-  // O_EXCL rather than mkstemp(): mkstemp makes the file 0600, and fixing that up would need the process umask.
-  std::random_device rd;
-  std::string tmp;
-  int fd = -1;
-  for (int attempt = 0; attempt < 8 && fd < 0; ++attempt) {
-    tmp = absl::StrFormat("%s.tmp.%d.%08x", path, static_cast<int>(::getpid()), rd());
-    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-    if (fd < 0 && errno != EEXIST) break;
-  }
-  if (fd < 0) return errno_status(errno, absl::StrCat(path, ": cannot create a temporary file ", tmp));
-  auto fail = [&](int err, const std::string& what) {
-    ::unlink(tmp.c_str());
-    return errno_status(err, absl::StrCat(tmp, ": ", what));
-  };
-  auto write_all = [&](const char* p, size_t n) {
-    while (n > 0) {
-      const ssize_t w = ::write(fd, p, n);
-      if (w < 0) {
-        if (errno == EINTR) continue;
-        return false;
-      }
-      p += w;
-      n -= static_cast<size_t>(w);
-    }
-    return true;
-  };
-  for (const std::string& r : records) {
-    const std::string framed = tfrecord_frame(r);
-    if (!write_all(framed.data(), framed.size())) {
-      const int err = errno;
-      ::close(fd);
-      return fail(err, "write failed");
-    }
-  }
-  if (::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    return fail(err, "fsync failed");
-  }
-  if (::close(fd) != 0) return fail(errno, "close failed");
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) return fail(errno, absl::StrCat("cannot rename to ", path));
-  return absl::OkStatus();
+  // The whole file is framed in memory (one more copy of the records) so that it is written atomically in one go.
+  size_t size = 0;
+  for (const std::string& r : records) size += kHeaderSize + r.size() + kFooterSize;
+  std::string bytes;
+  bytes.reserve(size);
+  for (const std::string& r : records) bytes += tfrecord_frame(r);
+  return file_write_atomically(path, bytes);
 }
 
 }  // namespace ss

@@ -1,9 +1,7 @@
 // scenestreamer dataset stats FILE_OR_DIR... [--json] [--markdown]
 // Each argument is one column: a scenario file, or a directory read recursively (its *.json and *.tfrecord* files).
 // TFRecords are read one record at a time, so a dataset of thousands of scenarios never has to fit in memory.
-#include <algorithm>
 #include <cstdio>
-#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -17,27 +15,6 @@
 
 namespace ss::dataset {
 namespace {
-
-namespace fs = std::filesystem;
-
-bool is_scenario_file(const std::string& name) {
-  return name.ends_with(".json") || name.find(".tfrecord") != std::string::npos;
-}
-
-absl::StatusOr<std::vector<std::string>> scenario_files(const std::string& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return absl::NotFoundError(absl::StrCat(path, ": no such file or directory"));
-  if (!fs::is_directory(path, ec)) return std::vector<std::string>{path};
-  std::vector<std::string> files;
-  for (fs::recursive_directory_iterator it(path, fs::directory_options::follow_directory_symlink, ec), end;
-       !ec && it != end; it.increment(ec)) {
-    if (it->is_regular_file(ec) && is_scenario_file(it->path().filename().string())) files.push_back(it->path().string());
-  }
-  if (ec) return absl::InternalError(absl::StrCat(path, ": cannot list: ", ec.message()));
-  if (files.empty()) return absl::InvalidArgumentError(absl::StrCat(path, ": holds no *.json or *.tfrecord* files"));
-  std::sort(files.begin(), files.end());
-  return files;
-}
 
 absl::Status add_file(const std::string& path, ScenarioStats* stats) {
   if (path.ends_with(".json")) {
@@ -76,7 +53,7 @@ int stats_main(int argc, char** argv) {
   }
   std::vector<std::pair<std::string, nlohmann::ordered_json>> columns;
   for (const std::string& p : args->positional) {
-    auto files = scenario_files(p);
+    auto files = list_scenario_files(p, /*recursive=*/true);
     if (!files.ok()) {
       std::fprintf(stderr, "dataset stats: %s\n", std::string(files.status().message()).c_str());
       return 1;

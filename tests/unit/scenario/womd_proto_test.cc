@@ -388,6 +388,36 @@ TEST(ReadScenarios, DirectoryTakesTfrecordFilesInNameOrder) {
   EXPECT_TRUE((*r)[2] == c);
 }
 
+TEST(ListScenarioFiles, SubdirectoriesOnlyWhenRecursive) {
+  const std::string dir = temp_dir("list_scenario_files");
+  fs::create_directories(dir + "/sub/deeper");
+  fs::create_directories(dir + "/dir.tfrecord");  // a directory: never listed itself
+  for (const char* f : {"/b.tfrecord-00000-of-00001", "/a.json", "/notes.txt", "/sub/c.json", "/sub/deeper/d.tfrecord"})
+    std::ofstream(dir + f) << "x";
+  auto top = list_scenario_files(dir, /*recursive=*/false);
+  ASSERT_TRUE(top.ok()) << top.status();
+  EXPECT_EQ(*top, (std::vector<std::string>{dir + "/a.json", dir + "/b.tfrecord-00000-of-00001"}));
+  auto all = list_scenario_files(dir, /*recursive=*/true);
+  ASSERT_TRUE(all.ok()) << all.status();
+  EXPECT_EQ(*all, (std::vector<std::string>{dir + "/a.json", dir + "/b.tfrecord-00000-of-00001", dir + "/sub/c.json",
+                                            dir + "/sub/deeper/d.tfrecord"}));
+}
+
+TEST(ListScenarioFiles, FileMissingPathAndEmptyDirectory) {
+  const std::string dir = temp_dir("list_scenario_files_edges");
+  std::ofstream(dir + "/notes.txt") << "x";
+  // A file is itself, whatever its name.
+  auto file = list_scenario_files(dir + "/notes.txt", /*recursive=*/false);
+  ASSERT_TRUE(file.ok()) << file.status();
+  EXPECT_EQ(*file, std::vector<std::string>{dir + "/notes.txt"});
+  auto missing = list_scenario_files(dir + "/nope", /*recursive=*/true);
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(msg(missing.status()), HasSubstr("nope: no such file or directory"));
+  auto empty = list_scenario_files(dir, /*recursive=*/true);
+  EXPECT_EQ(empty.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(msg(empty.status()), HasSubstr(dir + ": holds no *.json or *.tfrecord* files"));
+}
+
 TEST(ReadScenarios, BadRecordNamesFileAndIndex) {
   const std::string dir = temp_dir("womd_bad_record");
   wo::Scenario p = small_proto();

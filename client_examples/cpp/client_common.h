@@ -1,0 +1,48 @@
+// What the example C++ clients share: their flags, the connection, the first scenario, the ego's controller and
+// closing a session.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "grpcpp/grpcpp.h"
+#include "scenestreamer/v1/simulator.grpc.pb.h"
+
+namespace client {
+
+namespace pb = scenestreamer::v1;
+
+inline const char* const kDefaultTarget = "127.0.0.1:50051";
+
+// Command-line flags: "--name VALUE" for the names in `valued`, a bare "--name" for those in `switches` (names
+// without the dashes). A flag given twice keeps its last value.
+struct Flags {
+  std::map<std::string, std::string> values;
+  std::set<std::string> switches;
+};
+
+// Parses argv[1..]. False on an unknown flag, a stray argument or a valued flag without its value: the caller then
+// prints its usage.
+bool parse_flags(int argc, char** argv, const std::vector<std::string>& valued, const std::vector<std::string>& switches,
+                 Flags* flags);
+
+// A flag's value, or `fallback` when it was not given. Numbers are read with std::atoi, so "abc" is 0.
+std::string flag_string(const Flags& flags, const std::string& name, const std::string& fallback);
+int flag_int(const Flags& flags, const std::string& name, int fallback);
+
+// A stub over an insecure channel: the examples talk to a server on the same host or network.
+std::unique_ptr<pb::Simulator::Stub> connect(const std::string& target);
+
+// The name of the server's first scenario into `*name`; empty when the server has none.
+grpc::Status first_scenario(pb::Simulator::Stub& stub, std::string* name);
+
+// The examples' ego controller: every controlled agent keeps its heading and speed for the next 0.5 s.
+pb::StepSceneRequest keep_heading_and_speed(const std::string& session_id, const pb::Tick& tick);
+
+// Closes the session (the server would otherwise keep it until it is evicted).
+grpc::Status close_session(pb::Simulator::Stub& stub, const std::string& session_id);
+
+}  // namespace client
