@@ -1,5 +1,6 @@
 #include "engine/model/attention.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -48,24 +49,49 @@ void softmax_rows(Mat& s) {
   }
 }
 
+// The relation terms of the keys that share table rows. Scores: s[h][posed + t] += u_h . table[row_t] (one dot
+// product per head and table row, then a lookup per key). Weighted relation: rel[h] += sum_t a[h][posed + t]
+// table[row_t] (weights summed per table row first). `s`, `a`: g x m per head as a row-major block of g rows.
+struct TableTerms {
+  Mat per_row;  // scratch: heads x table rows, or g x table rows
+
+  void add_scores(const QueryKeys& set, const float* u, int heads, int r, float* s, int stride) {
+    per_row.noalias() = MatMap(u, heads, r) * set.table->transpose();
+    const int mp = set.posed();
+    for (int h = 0; h < heads; ++h)
+      for (size_t t = 0; t < set.table_rows.size(); ++t) s[h * stride + mp + t] += per_row(h, set.table_rows[t]);
+  }
+  void add_weighted(const QueryKeys& set, const float* a, int heads, int r, int stride, float* rel) {
+    per_row.setZero(heads, set.table->rows());
+    const int mp = set.posed();
+    for (int h = 0; h < heads; ++h)
+      for (size_t t = 0; t < set.table_rows.size(); ++t) per_row(h, set.table_rows[t]) += a[h * stride + mp + t];
+    Eigen::Map<Mat>(rel, heads, r).noalias() += per_row * *set.table;
+  }
+};
+
 // One query with its own key set, all heads at once: scores (heads x m) from the key rows in place (a gather would
-// copy each row for one use), the relation term along the keys, softmax, then the weighted values (added to `out`,
-// heads x dh) and the weighted relation embedding (written to `rel_out`, heads x r).
+// copy each row for one use), the relation terms, softmax, then the weighted values (added to `out`, heads x dh) and
+// the weighted relation embedding (written to `rel_out`, heads x r).
 void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set, const MatMap& k,
-                const MatMap& v, float scale, Mat& scores, float* out, float* rel_out) {
+                const MatMap& v, float scale, Mat& scores, TableTerms& table, float* out, float* rel_out) {
   const int m = static_cast<int>(set.keys.size());
+  const int mp = set.posed();
   scores.resize(shape.heads, m);
   kernel_key_scores(shape, q, k.data(), set.keys.data(), m, scores.data());
-  if (!set.uniform) kernel_relation_scores(shape, u, set.relation.data(), m, scores.data());
+  if (!set.uniform) {
+    kernel_relation_scores(shape, u, set.relation.data(), mp, scores.data(), m);
+    if (mp < m) table.add_scores(set, u, shape.heads, shape.r, scores.data(), m);
+  }
   scores *= scale;
   softmax_rows(scores);
   kernel_weighted_values(shape, scores.data(), v.data(), set.keys.data(), m, out);
-  if (set.uniform) {
-    for (int h = 0; h < shape.heads; ++h)  // the weights sum to one
-      Eigen::Map<Vec>(rel_out + h * shape.r, shape.r) = set.relation.row(0);
-  } else {
-    kernel_weighted_relation(shape, scores.data(), set.relation.data(), m, rel_out);
+  if (set.uniform) {  // the weights sum to one
+    Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_rows[0]);
+    return;
   }
+  kernel_weighted_relation(shape, scores.data(), set.relation.data(), mp, m, rel_out);
+  if (mp < m) table.add_weighted(set, scores.data(), shape.heads, shape.r, m, rel_out);
 }
 
 }  // namespace
@@ -91,21 +117,24 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
   std::map<const QueryKeys*, std::vector<int>> groups;
   for (int i = 0; i < n; ++i) groups[query_keys[i]].push_back(i);
 
-  Mat o = Mat::Zero(n, d);        // attention-weighted values
+  Mat o = Mat::Zero(n, d);            // attention-weighted values
   Mat rel = Mat::Zero(n, heads * r);  // attention-weighted relation embeddings, projected by W_rv below
-  Mat kg, vg, s, og, scores;
+  Mat kg, vg, s, og, ug, rg, scores;
+  TableTerms table;
   for (const auto& [set, rows] : groups) {
     const int m = static_cast<int>(set->keys.size());
     const int g = static_cast<int>(rows.size());
+    const int mp = set->posed();
     if (m == 0) continue;  // nothing to read: the output is the relation-value bias alone
     if (g <= 2) {
       for (int i : rows)
-        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, k, v, scale, scores, o.row(i).data(),
+        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, k, v, scale, scores, table, o.row(i).data(),
                    rel.row(i).data());
       continue;
     }
     // Keys 0..m-1 of k in order (a whole map): read in place; otherwise gather the rows once for the group.
-    const bool identity = m == k.rows() && set->keys.front() == 0 && set->keys.back() == m - 1;
+    const bool identity = m == k.rows() && std::is_sorted(set->keys.begin(), set->keys.end()) &&
+                          set->keys.front() == 0 && set->keys.back() == m - 1;
     if (!identity) {
       kg = k(set->keys, Eigen::placeholders::all);
       vg = v(set->keys, Eigen::placeholders::all);
@@ -115,17 +144,22 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     for (int h = 0; h < heads; ++h) {
       // Scores, queries down and keys across: g x m.
       s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();
-      if (!set->uniform) s.noalias() += u(rows, Eigen::seqN(h * r, r)) * set->relation.transpose();
+      ug = u(rows, Eigen::seqN(h * r, r));  // g x r
+      if (!set->uniform) {
+        s.leftCols(mp).noalias() += ug * set->relation.transpose();
+        if (mp < m) table.add_scores(*set, ug.data(), g, r, s.data(), m);
+      }
       s *= scale;
       softmax_rows(s);
       og.noalias() = s * vv.middleCols(h * dh, dh);  // g x dh
       for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = og.row(c);
       if (set->uniform) {
-        for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = set->relation.row(0);
+        rg = set->table->row(set->table_rows[0]).replicate(g, 1);  // the weights sum to one
       } else {
-        og.noalias() = s * set->relation;  // g x r
-        for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = og.row(c);
+        rg.noalias() = s.leftCols(mp) * set->relation;  // g x r
+        if (mp < m) table.add_weighted(*set, s.data(), g, r, m, rg.data());
       }
+      for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = rg.row(c);
     }
   }
   // out_i^h += W_rv^h (sum_j a_ij h_ij) + b_rv^h

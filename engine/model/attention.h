@@ -49,12 +49,19 @@ Mat relation_embedding(const Mat& features, const RelationParams& p);
 // (0 <= dt < steps) of the result (steps x relation_dim) is h of f = (0, 0, 0, 0, 0, dt / 5, 0).
 Mat relation_by_step(const RelationParams& p, int steps);
 
-// The keys one query reads: rows of the key/value matrices and their relation embeddings.
+// The keys one query reads: rows of the key/value matrices and their relation embeddings. Keys whose pair has
+// positions on both sides come first, each with its own row of `relation`; the others (a side without a position)
+// share the rows of a small table (their h depends only on the step difference), so they cost no memory of their
+// own. Each part is in ascending key order.
 struct QueryKeys {
-  std::vector<int> keys; // ascending
-  Mat relation;          // keys.size() x relation_dim: row j is h for key j; a single row when `uniform`
-  bool uniform = false;  // every key has the same relation (queries without a position): the relation term is
-                         // then one constant per query and head, which the softmax cancels, and is skipped
+  std::vector<int> keys;
+  Mat relation;                 // posed() x relation_dim: h of keys[j] for j < posed()
+  const Mat* table = nullptr;   // rows of h shared by the remaining keys (relation_by_step), when there are any
+  std::vector<int> table_rows;  // for keys[posed() + t]: its row of `table`
+  bool uniform = false;         // no posed keys and one table row for all: the relation term is then one constant
+                                // per query and head, which the softmax cancels, and is skipped
+
+  int posed() const { return static_cast<int>(relation.rows()); }
 };
 
 // Attention for a batch of queries. `x`: the queries' normalised inputs (n x d). `k`, `v`: projected keys and values

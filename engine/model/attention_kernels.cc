@@ -18,10 +18,11 @@ void kernel_key_scores_plain(const AttentionShape& s, const float* q, const floa
   }
 }
 
-void kernel_relation_scores_plain(const AttentionShape& s, const float* u, const float* rel, int m, float* scores) {
+void kernel_relation_scores_plain(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+                                  int stride) {
   for (int h = 0; h < s.heads; ++h)
     for (int c = 0; c < s.r; ++c)
-      for (int j = 0; j < m; ++j) scores[h * m + j] += u[h * s.r + c] * rel[j * s.r + c];
+      for (int j = 0; j < m; ++j) scores[h * stride + j] += u[h * s.r + c] * rel[j * s.r + c];
 }
 
 void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
@@ -33,11 +34,12 @@ void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const
   }
 }
 
-void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, float* out) {
+void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+                                    float* out) {
   for (int h = 0; h < s.heads; ++h)
     for (int c = 0; c < s.r; ++c) {
       float sum = 0;
-      for (int j = 0; j < m; ++j) sum += a[h * m + j] * rel[j * s.r + c];
+      for (int j = 0; j < m; ++j) sum += a[h * stride + j] * rel[j * s.r + c];
       out[h * s.r + c] = sum;
     }
 }
@@ -119,8 +121,9 @@ void kernel_weighted_values(const AttentionShape& s, const float* a, const float
   weighted_values<1>(s, a, v, keys, m, out);
 }
 
-void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores) {
-  if (s.heads % 4 != 0 || s.r != 32) return kernel_relation_scores_plain(s, u, rel, m, scores);
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+                            int stride) {
+  if (s.heads % 4 != 0 || s.r != 32) return kernel_relation_scores_plain(s, u, rel, m, scores, stride);
   for (int h = 0; h < s.heads; h += 4) {
     __m512 uh[8];
     for (int g = 0; g < 4; ++g)
@@ -131,20 +134,21 @@ void kernel_relation_scores(const AttentionShape& s, const float* u, const float
       for (int g = 0; g < 4; ++g) acc[g] = _mm512_fmadd_ps(uh[g * 2 + 1], r1, _mm512_mul_ps(uh[g * 2], r0));
       alignas(64) float lanes[16];
       _mm512_store_ps(lanes, sum4(acc[0], acc[1], acc[2], acc[3]));
-      for (int g = 0; g < 4; ++g) scores[(h + g) * m + j] += lanes[4 * g];
+      for (int g = 0; g < 4; ++g) scores[(h + g) * stride + j] += lanes[4 * g];
     }
   }
 }
 
-void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, float* out) {
-  if (s.heads % 4 != 0 || s.r != 32) return kernel_weighted_relation_plain(s, a, rel, m, out);
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+                              float* out) {
+  if (s.heads % 4 != 0 || s.r != 32) return kernel_weighted_relation_plain(s, a, rel, m, stride, out);
   for (int h = 0; h < s.heads; h += 4) {
     __m512 acc[8];
     for (int i = 0; i < 8; ++i) acc[i] = _mm512_setzero_ps();
     for (int j = 0; j < m; ++j) {
       const __m512 r0 = _mm512_loadu_ps(rel + j * s.r), r1 = _mm512_loadu_ps(rel + j * s.r + 16);
       for (int g = 0; g < 4; ++g) {
-        const __m512 w = _mm512_set1_ps(a[(h + g) * m + j]);
+        const __m512 w = _mm512_set1_ps(a[(h + g) * stride + j]);
         acc[g * 2] = _mm512_fmadd_ps(w, r0, acc[g * 2]);
         acc[g * 2 + 1] = _mm512_fmadd_ps(w, r1, acc[g * 2 + 1]);
       }
@@ -160,15 +164,17 @@ void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, 
                        float* scores) {
   kernel_key_scores_plain(s, q, k, keys, m, scores);
 }
-void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores) {
-  kernel_relation_scores_plain(s, u, rel, m, scores);
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+                            int stride) {
+  kernel_relation_scores_plain(s, u, rel, m, scores, stride);
 }
 void kernel_weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
                             float* out) {
   kernel_weighted_values_plain(s, a, v, keys, m, out);
 }
-void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, float* out) {
-  kernel_weighted_relation_plain(s, a, rel, m, out);
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+                              float* out) {
+  kernel_weighted_relation_plain(s, a, rel, m, stride, out);
 }
 
 #endif

@@ -15,19 +15,23 @@ struct AttentionShape {
 
 // scores[h][j] = q_h . k_{keys[j], h}
 void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m, float* scores);
-// scores[h][j] += u_h . rel[j]   (u: heads x r, the relation query of each head)
-void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores);
+// scores[h][j] += u_h . rel[j] for j < m   (u: heads x r, the relation query of each head; scores rows `stride` apart)
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+                            int stride);
 // out[h] += sum_j a[h][j] v_{keys[j], h}   (out: d floats)
 void kernel_weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m, float* out);
-// out[h] = sum_j a[h][j] rel[j]   (out: heads x r)
-void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, float* out);
+// out[h] = sum_{j < m} a[h][j] rel[j]   (out: heads x r; rows of a `stride` apart)
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+                              float* out);
 
 // The plain forms (what the fast forms must equal up to float rounding); exposed for the tests.
 void kernel_key_scores_plain(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                              float* scores);
-void kernel_relation_scores_plain(const AttentionShape& s, const float* u, const float* rel, int m, float* scores);
+void kernel_relation_scores_plain(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+                                  int stride);
 void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
                                   float* out);
-void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, float* out);
+void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+                                    float* out);
 
 }  // namespace ss

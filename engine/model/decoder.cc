@@ -73,6 +73,7 @@ Anchor anchor_of(const DecoderToken& t) { return Anchor(t.has_pose, t.pose, t.st
 struct TokenIndex {
   struct Step {
     std::vector<int> lights, group, motion;
+    std::vector<int> bounds;  // the group's SOS and EOS (also in `group`)
   };
   std::map<int, Step> steps;
   std::unordered_map<int64_t, std::vector<int>> objects;
@@ -82,6 +83,7 @@ struct TokenIndex {
     if (t.kind == TokenKind::light) s.lights.push_back(i);
     else if (t.kind == TokenKind::motion) s.motion.push_back(i);
     else s.group.push_back(i);
+    if (t.kind == TokenKind::sos || t.kind == TokenKind::eos) s.bounds.push_back(i);
     if (t.object != kNoObject) objects[t.object].push_back(i);
   }
   const Step* at(int step) const {
@@ -97,20 +99,26 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   const int window = config().window_steps;
   auto token = [&](int j) -> const DecoderToken& { return j < c ? cache.tokens[j] : tokens[j - c]; };
   TokenIndex index;
-  std::vector<Anchor> anchors;
-  for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) {
-    index.add(token(j), j);
-    anchors.push_back(anchor_of(token(j)));
-  }
+  for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) index.add(token(j), j);
+  std::vector<Anchor> anchors = cache.anchors;
+  for (const DecoderToken& t : tokens) anchors.push_back(anchor_of(t));
 
   KeySets out;
   std::vector<int> candidates, keys, spatial;
+  std::vector<int> seen(anchors.size(), -1);  // the query that last took each key: candidates without a sort
   std::vector<double> dist;
   std::vector<int64_t> order;
   for (size_t i = 0; i < tokens.size(); ++i) {
     const DecoderToken& q = tokens[i];
     candidates.clear();
-    auto take = [&](const std::vector<int>& v) { candidates.insert(candidates.end(), v.begin(), v.end()); };
+    const int query = static_cast<int>(i);
+    auto take = [&](const std::vector<int>& v) {
+      for (int j : v)
+        if (seen[j] != query) {
+          seen[j] = query;
+          candidates.push_back(j);
+        }
+    };
     if (const auto* now = index.at(q.step)) {
       take(now->lights);
       if (q.kind == TokenKind::motion) take(now->motion);
@@ -120,13 +128,9 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
       if (const auto* prev = index.at(q.step - 1)) take(prev->motion);
     if (is_agent_state_group(q.kind))
       for (int s = q.step - window + 1; s < q.step; ++s)
-        if (const auto* earlier = index.at(s))
-          for (int j : earlier->group)
-            if (token(j).kind == TokenKind::sos || token(j).kind == TokenKind::eos) candidates.push_back(j);
+        if (const auto* earlier = index.at(s)) take(earlier->bounds);
     if (q.object != kNoObject)
       if (auto it = index.objects.find(q.object); it != index.objects.end()) take(it->second);
-    std::sort(candidates.begin(), candidates.end());
-    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
 
     keys.clear();
     spatial.clear();
@@ -146,25 +150,26 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     for (int pos : nearest_within(dist, order, limit_)) keys.push_back(spatial[pos]);
     std::sort(keys.begin(), keys.end());
 
-    auto set = std::make_unique<QueryKeys>();
-    set->keys = keys;
-    set->relation.resize(keys.size(), self_relation_by_step_.cols());
     // Pairs with a position on both sides go through the relation MLP; the others depend only on the step
-    // difference and come from the table.
-    std::vector<int> posed;
-    for (size_t j = 0; j < keys.size(); ++j) {
-      if (anchors[c + i].has_pose && anchors[keys[j]].has_pose) posed.push_back(static_cast<int>(j));
-      else set->relation.row(j) = self_relation_by_step_.row(q.step - token(keys[j]).step);
-    }
-    if (!posed.empty()) {
-      Mat f(posed.size(), kRelationFeatures);
-      for (size_t e = 0; e < posed.size(); ++e) {
-        const RelationFeatures rf = relation_features(anchors[c + i], anchors[keys[posed[e]]]);
-        f.row(e) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+    // difference and share the rows of the table.
+    auto set = std::make_unique<QueryKeys>();
+    std::vector<int> table_keys;
+    for (int j : keys) {
+      if (anchors[c + i].has_pose && anchors[j].has_pose) {
+        set->keys.push_back(j);
+      } else {
+        table_keys.push_back(j);
+        set->table_rows.push_back(q.step - token(j).step);
       }
-      const Mat h = relation_embedding(f, self_relation_);
-      for (size_t e = 0; e < posed.size(); ++e) set->relation.row(posed[e]) = h.row(e);
     }
+    Mat f(set->keys.size(), kRelationFeatures);
+    for (size_t e = 0; e < set->keys.size(); ++e) {
+      const RelationFeatures rf = relation_features(anchors[c + i], anchors[set->keys[e]]);
+      f.row(e) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+    }
+    set->relation = relation_embedding(f, self_relation_);
+    set->keys.insert(set->keys.end(), table_keys.begin(), table_keys.end());
+    set->table = &self_relation_by_step_;
     out.per_query.push_back(set.get());
     out.sets.push_back(std::move(set));
   }
@@ -210,7 +215,8 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
       }
       set->relation = relation_embedding(f, cross_relation_);
     } else {
-      set->relation = cross_relation_at_rest_;  // no position: every map key has the same relation
+      set->table = &cross_relation_at_rest_;  // no position: every map key has the same relation
+      set->table_rows.assign(set->keys.size(), 0);
       set->uniform = true;
     }
     if (!q.has_pose) whole_map = set.get();
@@ -262,6 +268,7 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
     x += linear(f, L.ffn2);
   }
   cache.tokens.insert(cache.tokens.end(), tokens.begin(), tokens.end());
+  for (const DecoderToken& t : tokens) cache.anchors.push_back(anchor_of(t));
   cache.next_seq += n;
   return layer_norm(x, decoder_final_norm_);
 }

@@ -6,6 +6,7 @@ namespace ss {
 
 void KvCache::init(int layers, int d) {
   tokens.clear();
+  anchors.clear();
   k.assign(layers, {});
   v.assign(layers, {});
   d_model = d;
@@ -19,6 +20,7 @@ void KvCache::evict_before(int first_step) {
   const size_t drop = first_kept - tokens.begin();
   if (drop == 0) return;
   tokens.erase(tokens.begin(), first_kept);
+  anchors.erase(anchors.begin(), anchors.begin() + drop);
   for (size_t l = 0; l < k.size(); ++l) {
     k[l].erase(k[l].begin(), k[l].begin() + drop * d_model);
     v[l].erase(v[l].begin(), v[l].begin() + drop * d_model);
@@ -29,6 +31,7 @@ void KvCache::truncate(int n) {
   if (n >= size()) return;
   next_seq -= size() - n;
   tokens.resize(n);
+  anchors.resize(n);
   for (size_t l = 0; l < k.size(); ++l) {
     k[l].resize(static_cast<size_t>(n) * d_model);
     v[l].resize(static_cast<size_t>(n) * d_model);
@@ -36,7 +39,7 @@ void KvCache::truncate(int n) {
 }
 
 size_t KvCache::bytes() const {
-  size_t b = tokens.capacity() * sizeof(DecoderToken);
+  size_t b = tokens.capacity() * sizeof(DecoderToken) + anchors.capacity() * sizeof(Anchor);
   for (size_t l = 0; l < k.size(); ++l) b += (k[l].capacity() + v[l].capacity()) * sizeof(float);
   return b;
 }

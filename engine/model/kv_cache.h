@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "engine/model/attention.h"
 #include "engine/model/linalg.h"
 #include "engine/model/token.h"
 
@@ -11,6 +12,7 @@ namespace ss {
 
 struct KvCache {
   std::vector<DecoderToken> tokens;     // sequence order, oldest first
+  std::vector<Anchor> anchors;          // each token's place as a relation anchor (its heading's cos and sin computed once)
   std::vector<std::vector<float>> k, v; // per decoder layer: tokens.size() rows of d_model, row-major
   int d_model = 0;
   int64_t next_seq = 0;                 // seq of the next token appended

@@ -50,8 +50,10 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
   kernel_key_scores_plain(s, q.data(), k.data(), keys.data(), m, plain.data());
   expect_near(fast, plain, "key scores");
 
-  kernel_relation_scores(s, u.data(), rel.data(), m, fast.data());
-  kernel_relation_scores_plain(s, u.data(), rel.data(), m, plain.data());
+  // The relation kernels on the first m - m / 3 keys of rows m apart (a query's keys with relation rows come first).
+  const int mp = m - m / 3;
+  kernel_relation_scores(s, u.data(), rel.data(), mp, fast.data(), m);
+  kernel_relation_scores_plain(s, u.data(), rel.data(), mp, plain.data(), m);
   expect_near(fast, plain, "relation scores (added to the key scores)");
 
   std::vector<float> out_fast(s.d(), 0.5f), out_plain(s.d(), 0.5f);  // the values are added to what is there
@@ -60,8 +62,8 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
   expect_near(out_fast, out_plain, "weighted values");
 
   std::vector<float> rel_fast(static_cast<size_t>(s.heads) * s.r, 9.0f), rel_plain(rel_fast.size(), -9.0f);
-  kernel_weighted_relation(s, a.data(), rel.data(), m, rel_fast.data());
-  kernel_weighted_relation_plain(s, a.data(), rel.data(), m, rel_plain.data());
+  kernel_weighted_relation(s, a.data(), rel.data(), mp, m, rel_fast.data());
+  kernel_weighted_relation_plain(s, a.data(), rel.data(), mp, m, rel_plain.data());
   expect_near(rel_fast, rel_plain, "weighted relation (overwrites its output)");
 }
 
