@@ -26,6 +26,20 @@ double percentile(std::vector<double> v, double p) {
   return lo + 1 < v.size() ? v[lo] + (pos - lo) * (v[lo + 1] - v[lo]) : v[lo];
 }
 
+// Eigen's matrix product on a decoder shape (a step's ~340 tokens through the feed-forward's first layer), in this
+// run: the rate the dense part of a step can reach at best on this machine.
+double gemm_gflops() {
+  const Mat x = Mat::Random(340, 128), w = Mat::Random(512, 128);
+  Mat y;
+  int reps = 0;
+  const auto t0 = Clock::now();
+  do {
+    y.noalias() = x * w.transpose();
+    ++reps;
+  } while (ms_since(t0) < 300);
+  return 2.0 * x.rows() * x.cols() * w.rows() * reps / (ms_since(t0) * 1e6);
+}
+
 int fail(const absl::Status& st) {
   std::fprintf(stderr, "bench: %s\n", std::string(st.message()).c_str());
   return 1;
@@ -55,26 +69,43 @@ int bench_main(int argc, char** argv) {
   out["lights"] = world->scenario->signals.empty() ? 0 : world->scenario->signals[world->scenario->current_time_index].size();
   out["map_segments"] = world->map->size();
 
-  // Step latency, after the cache window has filled.
-  nlohmann::ordered_json p50, p99;
+  const double peak = gemm_gflops();
+  out["gemm_gflops"] = peak;
+
+  // Step latency, after the cache window has filled; the work of the timed steps as counted by the decoder.
+  nlohmann::ordered_json p50, p99, gflop, achieved, floor_ms;
   for (int agents : {16, 32, 64, 128}) {
     auto s = bench_session(*world, agents, 1);
     if (!s.ok()) return fail(s.status());
     for (int i = 0; i < c.window_steps; ++i)
       if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
     std::vector<double> ms;
+    const double flops_before = world->model->decode_flops((*s)->decode_work());
     for (int i = 0; i < steps; ++i) {
       const auto t0 = Clock::now();
       if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
       ms.push_back(ms_since(t0));
     }
-    p50[std::to_string(agents)] = percentile(ms, 0.5);
-    p99[std::to_string(agents)] = percentile(ms, 0.99);
+    const double step_gflop = (world->model->decode_flops((*s)->decode_work()) - flops_before) / steps / 1e9;
+    double total_ms = 0;
+    for (double m : ms) total_ms += m;
+    const std::string key = std::to_string(agents);
+    p50[key] = percentile(ms, 0.5);
+    p99[key] = percentile(ms, 0.99);
+    gflop[key] = step_gflop;
+    achieved[key] = step_gflop * steps / (total_ms / 1e3);
+    floor_ms[key] = step_gflop / peak * 1e3;
     if (!args->has("json"))
-      std::printf("step, %3d agents: p50 %.1f ms, p99 %.1f ms\n", agents, percentile(ms, 0.5), percentile(ms, 0.99));
+      std::printf("step, %3d agents: p50 %.1f ms, p99 %.1f ms; %.3f GFLOP per step, %.1f GFLOP/s; %.1f ms at the GEMM peak\n",
+                  agents, percentile(ms, 0.5), percentile(ms, 0.99), step_gflop, achieved[key].get<double>(),
+                  floor_ms[key].get<double>());
   }
   out["step_ms_p50"] = p50;
   out["step_ms_p99"] = p99;
+  // The decoder's counted work per step, the rate achieved, and the time that work would take at gemm_gflops.
+  out["step_gflop"] = gflop;
+  out["step_gflops_achieved"] = achieved;
+  out["step_ms_at_gemm_peak"] = floor_ms;
 
   // Step 19 of a 64-agent rollout: its new tokens over the cache, against the whole history recomputed.
   auto h = history_batches(*world, 64, 19);

@@ -244,6 +244,7 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
   const int total = cache.size() + n;
   std::vector<const QueryKeys*> self_out;  // the last layer's self-attention runs for the output rows only
   for (int i : outputs) self_out.push_back(self.per_query[i]);
+  count_work(cache.work, self, cross, outputs);
 
   Mat x = embed(tokens);
   for (int l = 0; l < c.decoder_layers; ++l) {
@@ -271,6 +272,40 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
   for (const DecoderToken& t : tokens) cache.anchors.push_back(anchor_of(t));
   cache.next_seq += n;
   return layer_norm(x, decoder_final_norm_);
+}
+
+void Model::count_work(DecodeWork& w, const KeySets& self, const KeySets& cross, std::span<const int> outputs) const {
+  const int layers = config().decoder_layers;
+  auto reads = [](const QueryKeys* q) { return static_cast<int64_t>(q->keys.size()); };
+  auto posed = [](const QueryKeys* q) { return static_cast<int64_t>(q->uniform ? 0 : q->posed()); };
+  const int64_t n = static_cast<int64_t>(self.per_query.size());
+  ++w.calls;
+  w.tokens += n;
+  w.query_layers += n * (layers - 1) + static_cast<int64_t>(outputs.size());
+  for (size_t i = 0; i < self.per_query.size(); ++i) {
+    w.key_reads += reads(self.per_query[i]) * (layers - 1) + reads(cross.per_query[i]) * layers;
+    w.posed_key_reads += posed(self.per_query[i]) * (layers - 1) + posed(cross.per_query[i]) * layers;
+  }
+  for (int i : outputs) {
+    w.key_reads += reads(self.per_query[i]);
+    w.posed_key_reads += posed(self.per_query[i]);
+  }
+  for (const auto& set : self.sets) w.relation_rows += set->posed();
+  for (const auto& set : cross.sets) w.relation_rows += set->posed();
+}
+
+double Model::decode_flops(const DecodeWork& w) const {
+  const ModelConfig& c = config();
+  const double d = c.d_model, r = c.relation_dim, layers = c.decoder_layers;
+  // Multiply-adds. Per token and layer: cross-attention's query side (Q, Q', output: 3 d^2; the relation query and
+  // relation-value projection: 2 d r) and the self-attention keys and values (2 d^2). Per self-attention query and
+  // layer: the same query side and the feed-forward (2 d * ffn). Per key read: q.k and a v (2 d); with relation
+  // rows also u.h and a h (2 heads r). Per relation row: the MLP (7 r + r^2).
+  const double token_layer = 3 * d * d + 2 * d * r + 2 * d * d;
+  const double query_layer = 3 * d * d + 2 * d * r + 2 * d * c.ffn_dim();
+  const double macs = w.tokens * layers * token_layer + w.query_layers * query_layer + w.key_reads * 2 * d +
+                      w.posed_key_reads * 2 * c.heads * r + w.relation_rows * (kRelationFeatures * r + r * r);
+  return 2 * macs;
 }
 
 Mat Model::decode_full(const MapContext& map, std::vector<DecoderToken>& tokens) const {

@@ -10,12 +10,23 @@
 
 namespace ss {
 
+// What the decoder did for one cache, counted as it ran (the benchmark turns it into floating-point operations).
+struct DecodeWork {
+  int64_t calls = 0;
+  int64_t tokens = 0;               // new tokens decoded
+  int64_t query_layers = 0;         // (token, layer) pairs that ran a self-attention query and feed-forward
+  int64_t key_reads = 0;            // (query, key, layer) triples, self- and cross-attention
+  int64_t posed_key_reads = 0;      // those whose relation came from the query's own relation rows
+  int64_t relation_rows = 0;        // relation MLP evaluations (once per decode call, shared by the layers)
+};
+
 struct KvCache {
   std::vector<DecoderToken> tokens;     // sequence order, oldest first
   std::vector<Anchor> anchors;          // each token's place as a relation anchor (its heading's cos and sin computed once)
   std::vector<std::vector<float>> k, v; // per decoder layer: tokens.size() rows of d_model, row-major
   int d_model = 0;
   int64_t next_seq = 0;                 // seq of the next token appended
+  DecodeWork work;                      // everything decoded into this cache so far
 
   void init(int layers, int d);
   int size() const { return static_cast<int>(tokens.size()); }

@@ -78,6 +78,9 @@ class Model {
   // Full recompute: the whole history at once with a fresh cache (to test and measure the incremental path).
   Mat decode_full(const MapContext& map, std::vector<DecoderToken>& tokens) const;
   KvCache new_cache() const;
+  // Floating-point operations (multiply and add counted apart) of the work counted in `w`: the dense projections,
+  // the attention over every key read, and the relation MLP.
+  double decode_flops(const DecodeWork& w) const;
 
   // Heads, on decoder outputs (one row per token).
   Mat light_logits(const Mat& h) const;         // n x 4: the light's state at the next step
@@ -108,6 +111,7 @@ class Model {
   };
   KeySets self_keys(const KvCache& cache, std::span<const DecoderToken> tokens) const;
   KeySets cross_keys(const MapContext& map, std::span<const DecoderToken> tokens) const;
+  void count_work(DecodeWork& w, const KeySets& self, const KeySets& cross, std::span<const int> outputs) const;
 
   Weights weights_;
   NeighbourLimit limit_;

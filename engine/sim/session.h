@@ -114,6 +114,7 @@ class Session {
   int step_index() const { return step_; }
   size_t memory_bytes() const;
   size_t cache_tokens() const { return cache_.tokens.size(); }
+  const DecodeWork& decode_work() const { return cache_.work; }  // what the decoder did for this session
   const KvCache& cache() const { return cache_; }
 
   // For tests: every decoder batch (unbounded memory). Batches undone by a rejected sample are removed.
