@@ -20,7 +20,6 @@ struct ManagedSession {
 
   std::timed_mutex engine_mu;
   std::unique_ptr<Session> session;
-  StepResult last_step;                          // the last model step (10 Hz ticks extrapolate from it)
   std::map<int64_t, ControlInput> latest_pose;   // 10 Hz: every controller's latest pose
   std::map<int64_t, ControlInput> step_controls; // 10 Hz: poses since the last model step
   std::atomic<uint64_t> bytes{0};
@@ -78,9 +77,9 @@ absl::Status valid_proposed_id(const std::string& id) {
   return absl::OkStatus();
 }
 
-StepResult view_at(const StepResult& step, int tick_hz, int64_t tick) {
-  if (tick_hz != 10 || tick % kTicksPerStep10Hz == 0) return step;
-  return tick_between_steps(step, static_cast<int>(tick % kTicksPerStep10Hz), kTicksPerStep10Hz, {});
+StepResult view_at(const Session& session, int tick_hz, int64_t tick) {
+  if (tick_hz != 10 || tick % kTicksPerStep10Hz == 0) return session.current();
+  return tick_between_steps(session, static_cast<int>(tick % kTicksPerStep10Hz), kTicksPerStep10Hz, {});
 }
 
 }  // namespace
@@ -217,7 +216,6 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
     auto session = session_create(engine_, source, options);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
-    s->last_step = s->session->current();
     s->bytes = s->session->memory_bytes() + source.womd_bytes.size();
     return absl::OkStatus();
   });
@@ -226,7 +224,7 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   TickView out;
   {
     std::lock_guard<std::mutex> l(s->mu);
-    s->publish(s->last_step);
+    s->publish(s->session->current());
     out = s->recent.back();
   }
   {
@@ -284,7 +282,6 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_file(con
     auto session = session_restore(engine_, snap->source, snap->session_bytes);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
-    s->last_step = s->session->current();
     s->bytes = s->session->memory_bytes() + s->source.womd_bytes.size();
     return absl::OkStatus();
   });
@@ -292,7 +289,7 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_file(con
   s->touch();
   std::lock_guard<std::mutex> l(s->mu);
   s->tick = snap->tick;
-  s->publish(view_at(s->last_step, s->tick_hz, s->tick));
+  s->publish(view_at(*s->session, s->tick_hz, s->tick));
   return s;
 }
 
@@ -311,7 +308,6 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
     if (s.tick_hz == 2) {
       auto r = s.session->step(controls_now);
       if (!r.ok()) return r.status();
-      s.last_step = *r;
       view = std::move(*r);
     } else {
       for (const ControlInput& c : controls_now) s.latest_pose[c.agent_id] = s.step_controls[c.agent_id] = c;
@@ -322,12 +318,11 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
         auto r = s.session->step(at_step);
         if (!r.ok()) return r.status();
         s.step_controls.clear();
-        s.last_step = *r;
         view = std::move(*r);
       } else {
         std::vector<ControlInput> pushed;
         for (const auto& [id, c] : s.latest_pose) pushed.push_back(c);
-        view = tick_between_steps(s.last_step, sub, kTicksPerStep10Hz, pushed);
+        view = tick_between_steps(*s.session, sub, kTicksPerStep10Hz, pushed);
       }
     }
     ++tick;
@@ -442,13 +437,12 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
     auto r2 = s.session->inject(r);
     if (!r2.ok()) return r2.status();
     ids = *r2;
-    s.last_step = s.session->current();
     s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return st;
   std::lock_guard<std::mutex> l(s.mu);
-  s.view = view_at(s.last_step, s.tick_hz, s.tick);
+  s.view = view_at(*s.session, s.tick_hz, s.tick);
   return ids;
 }
 
@@ -550,7 +544,6 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
       return absl::OkStatus();
     });
     if (!st.ok()) return st;
-    f->last_step = s.last_step;
     f->latest_pose = s.latest_pose;
     f->step_controls = s.step_controls;
     f->bytes = s.bytes.load();

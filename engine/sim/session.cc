@@ -546,6 +546,31 @@ StepResult Session::current() const {
   return r;
 }
 
+StepResult Session::sub_tick_view(int sub_tick, int ticks_per_step) const {
+  StepResult r = current();
+  if (sub_tick <= 0) return r;
+  // (0.5 k) / n: at k == n this is exactly kStepSeconds, the dt step() uses, so the end point is step()'s to the bit.
+  const double t = kStepSeconds * sub_tick / ticks_per_step;
+  r.time += t;
+  r.left.clear();
+  for (size_t i = 0; i < agents_.size(); ++i) {  // current() lists the agents in this order
+    const Agent& a = agents_[i];
+    AgentView& v = r.agents[i];
+    v.entered = false;
+    if (a.controlled) continue;  // its client's pushed pose is the host's to show (tick_between_steps)
+    if (a.forced) {
+      // step() will teleport it whatever it sampled; until then it moves on at its last velocity instead of jumping.
+      v.state.x += v.state.vx * t;
+      v.state.y += v.state.vy * t;
+      continue;
+    }
+    // The control step() applies to it, the same fallback included.
+    const int token = a.next_motion < 0 || a.next_motion == kMotionStart ? kCentreToken : a.next_motion;
+    v.state = state_from_kin(bicycle_step(a.kin, motion_accel(token), motion_yaw_rate(token), t), a.state);
+  }
+  return r;
+}
+
 size_t Session::memory_bytes() const {
   size_t b = sizeof(*this) + cache_.bytes() + agents_.capacity() * sizeof(Agent) + lights_.capacity() * sizeof(Light);
   for (const Batch& batch : replay_) b += sizeof(Batch) + batch.tokens.capacity() * sizeof(DecoderToken);

@@ -110,6 +110,11 @@ class Session {
                                                           const std::string& bytes);
 
   StepResult current() const;
+  // The agents `sub_tick` of `ticks_per_step` ticks into the coming 0.5 s step (0 <= sub_tick <= ticks_per_step), for
+  // hosts that tick faster than the model: every agent step() will move by its sampled control is moved by that
+  // control over the elapsed part of the step, so at sub_tick == ticks_per_step it is exactly where step() will put
+  // it. The other agents follow tick.h's rules (controlled agents stay at their step pose here).
+  StepResult sub_tick_view(int sub_tick, int ticks_per_step) const;
   const SessionOptions& options() const { return options_; }
   int step_index() const { return step_; }
   size_t memory_bytes() const;
