@@ -136,8 +136,8 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     const bool identity = m == k.rows() && std::is_sorted(set->keys.begin(), set->keys.end()) &&
                           set->keys.front() == 0 && set->keys.back() == m - 1;
     if (!identity) {
-      kg = k(set->keys, Eigen::placeholders::all);
-      vg = v(set->keys, Eigen::placeholders::all);
+      kg = k(set->keys, Eigen::all);
+      vg = v(set->keys, Eigen::all);
     }
     const MatMap kk = identity ? k : MatMap(kg.data(), m, d);
     const MatMap vv = identity ? v : MatMap(vg.data(), m, d);

@@ -165,7 +165,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     Mat f(set->keys.size(), kRelationFeatures);
     for (size_t e = 0; e < set->keys.size(); ++e) {
       const RelationFeatures rf = relation_features(anchors[c + i], anchors[set->keys[e]]);
-      f.row(e) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+      for (int c = 0; c < kRelationFeatures; ++c) f(e, c) = rf[c];
     }
     set->relation = relation_embedding(f, self_relation_);
     set->keys.insert(set->keys.end(), table_keys.begin(), table_keys.end());
@@ -211,7 +211,7 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
       Mat f(set->keys.size(), kRelationFeatures);
       for (size_t j = 0; j < set->keys.size(); ++j) {
         const RelationFeatures rf = relation_features(qa, map.anchors[set->keys[j]]);
-        f.row(j) = Eigen::Map<const Vec>(rf.data(), kRelationFeatures);
+        for (int c = 0; c < kRelationFeatures; ++c) f(j, c) = rf[c];
       }
       set->relation = relation_embedding(f, cross_relation_);
     } else {
@@ -259,8 +259,8 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
     const MatMap keys(cache.k[l].data(), total, c.d_model), values(cache.v[l].data(), total, c.d_model);
     if (l + 1 == c.decoder_layers) {
       // Every token's keys and values are in the cache now; what follows only shapes the outputs asked for.
-      x = x(outputs, Eigen::placeholders::all).eval();
-      x += relative_attention(xs(outputs, Eigen::placeholders::all), L.self, c.heads, keys, values, self_out);
+      x = x(outputs, Eigen::all).eval();
+      x += relative_attention(xs(outputs, Eigen::all), L.self, c.heads, keys, values, self_out);
     } else {
       x += relative_attention(xs, L.self, c.heads, keys, values, self.per_query);
     }

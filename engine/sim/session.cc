@@ -171,7 +171,7 @@ Mat Session::decode(std::vector<DecoderToken>& tokens, std::span<const int> outp
   if (!probe_) return h;
   probe_->batches.push_back(tokens);
   probe_->outputs.push_back(h);
-  return h(outputs, Eigen::placeholders::all);
+  return h(outputs, Eigen::all);
 }
 
 void Session::trim_replay() {
@@ -514,7 +514,7 @@ absl::Status Session::state_force(const StateForceRequest& req) {
     const LightState state = entry.second;
     if (std::none_of(lights_.begin(), lights_.end(), [&](const Light& l) { return l.lane == lane; }))
       return absl::InvalidArgumentError(absl::StrCat("state force: no light on lane ", lane));
-    if (static_cast<int>(state) < 0 || static_cast<int>(state) >= kLightStates)
+    if (static_cast<int>(state) >= kLightStates)  // an unsigned byte: only too large is possible
       return absl::InvalidArgumentError(absl::StrCat("state force: light state ", static_cast<int>(state), " is not 0..3"));
     if (!seen_lights.insert(lane).second) return absl::InvalidArgumentError(absl::StrCat("state force: lane ", lane, " given twice"));
   }
