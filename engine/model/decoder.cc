@@ -165,7 +165,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     Mat f(set->keys.size(), kRelationFeatures);
     for (size_t e = 0; e < set->keys.size(); ++e) {
       const RelationFeatures rf = relation_features(anchors[c + i], anchors[set->keys[e]]);
-      for (int c = 0; c < kRelationFeatures; ++c) f(e, c) = rf[c];
+      for (int col = 0; col < kRelationFeatures; ++col) f(e, col) = rf[col];
     }
     set->relation = relation_embedding(f, self_relation_);
     set->keys.insert(set->keys.end(), table_keys.begin(), table_keys.end());
@@ -211,7 +211,7 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
       Mat f(set->keys.size(), kRelationFeatures);
       for (size_t j = 0; j < set->keys.size(); ++j) {
         const RelationFeatures rf = relation_features(qa, map.anchors[set->keys[j]]);
-        for (int c = 0; c < kRelationFeatures; ++c) f(j, c) = rf[c];
+        for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
       }
       set->relation = relation_embedding(f, cross_relation_);
     } else {
@@ -277,7 +277,7 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
 void Model::count_work(DecodeWork& w, const KeySets& self, const KeySets& cross, std::span<const int> outputs) const {
   const int layers = config().decoder_layers;
   auto reads = [](const QueryKeys* q) { return static_cast<int64_t>(q->keys.size()); };
-  auto posed = [](const QueryKeys* q) { return static_cast<int64_t>(q->uniform ? 0 : q->posed()); };
+  auto posed = [](const QueryKeys* q) { return static_cast<int64_t>(q->posed()); };
   const int64_t n = static_cast<int64_t>(self.per_query.size());
   ++w.calls;
   w.tokens += n;

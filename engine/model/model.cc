@@ -165,7 +165,7 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
     f.resize(keys[i].keys.size(), kRelationFeatures);
     for (size_t j = 0; j < keys[i].keys.size(); ++j) {
       const RelationFeatures rf = relation_features(Anchor(true, p, 0), Anchor(true, map->segments[keys[i].keys[j]].pose, 0));
-      for (int c = 0; c < kRelationFeatures; ++c) f(j, c) = rf[c];
+      for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
     }
     keys[i].relation = relation_embedding(f, encoder_relation_);
   }

@@ -24,7 +24,8 @@ int select_nucleus(std::vector<Candidate>& c, double threshold) {
   double mass = 0;                              // of c[0, lo)
   while (lo < hi && mass < threshold) {
     const Candidate pivot = c[lo + (hi - lo) / 2];
-    const auto first_after = std::partition(c.begin() + lo, c.begin() + hi, [&](const Candidate& x) { return before(x, pivot); });
+    const auto first_after =
+        std::partition(c.begin() + lo, c.begin() + hi, [&](const Candidate& x) { return before(x, pivot); });
     const int g = static_cast<int>(first_after - c.begin());
     double ahead = 0;  // the candidates before the pivot
     for (int i = lo; i < g; ++i) ahead += c[i].p;
@@ -34,7 +35,8 @@ int select_nucleus(std::vector<Candidate>& c, double threshold) {
     }
     // All of them are in, and the pivot is next.
     mass += ahead;
-    std::iter_swap(c.begin() + g, std::find_if(c.begin() + g, c.begin() + hi, [&](const Candidate& x) { return x.token == pivot.token; }));
+    const auto at = std::find_if(c.begin() + g, c.begin() + hi, [&](const Candidate& x) { return x.token == pivot.token; });
+    std::iter_swap(c.begin() + g, at);
     mass += pivot.p;
     lo = g + 1;
   }
