@@ -57,8 +57,13 @@ int bench_main(int argc, char** argv) {
     return args.ok() && args->has("help") ? 0 : 2;
   }
   int steps = 30, long_steps = 1000;
-  if (args->has("steps") && (!absl::SimpleAtoi(args->get("steps"), &steps) || steps < 1)) return 2;
-  if (args->has("long-steps") && (!absl::SimpleAtoi(args->get("long-steps"), &long_steps) || long_steps < 1)) return 2;
+  for (const auto& [flag, value] : {std::pair<const char*, int*>{"steps", &steps}, {"long-steps", &long_steps}}) {
+    if (args->has(flag) && (!absl::SimpleAtoi(args->get(flag), value) || *value < 1)) {
+      std::fprintf(stderr, "bench: --%s %s: expected a whole number of steps, at least 1\n", flag,
+                   args->get(flag).c_str());
+      return 2;
+    }
+  }
   enable_flush_to_zero();
   auto world = make_bench_world(args->get("scenario", kBenchScenario), args->get("model", "large"));
   if (!world.ok()) return fail(world.status());

@@ -1,0 +1,39 @@
+#!/bin/sh
+# scenestreamer bench --json, as a user runs it (small model, few steps so that it is quick): the JSON object the
+# issue specifies, with figures that make sense. It checks the contract and the arithmetic, not the speed.
+# usage: bench_test.sh SCENESTREAMER DATA_DIR
+set -eu
+bin=$1
+data=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+scenario="$data/womd/tfrecord/motion_data_one_scenario.tfrecord"
+
+"$bin" bench --json --model small --scenario "$scenario" --steps 3 --long-steps 25 > "$tmp/bench.json"
+/usr/bin/python3 - "$tmp/bench.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+counts = ["16", "32", "64", "128"]
+for key in ["step_ms_p50", "step_ms_p99", "step_gflop", "step_gflops_achieved", "step_ms_at_gemm_peak"]:
+    assert sorted(r[key], key=int) == counts, (key, r[key])
+    assert all(r[key][n] > 0 for n in counts), (key, r[key])
+assert all(r["step_ms_p99"][n] >= r["step_ms_p50"][n] for n in counts), r
+# More agents, more work: the decoder's own count grows with the agent count.
+gflop = [r["step_gflop"][n] for n in counts]
+assert gflop == sorted(gflop) and gflop[-1] > 3 * gflop[0], gflop
+assert r["gemm_gflops"] > 0
+for n in counts:  # the floor is the counted work at the measured GEMM rate
+    assert abs(r["step_ms_at_gemm_peak"][n] - r["step_gflop"][n] / r["gemm_gflops"] * 1e3) < 1e-6, n
+assert r["cached_vs_full_ratio"] > 1, r["cached_vs_full_ratio"]
+assert r["kv_bytes_per_token"] == 2 * 4 * 64 * 4, r["kv_bytes_per_token"]  # small: 4 layers of d 64, K and V
+assert r["session_bytes_after_25_steps"] > 0 and r["session_bytes_after_window"] > 0
+assert r["session_bytes_after_1000_steps"] is None  # not measured with --long-steps 25, and says so
+assert r["lights"] == 16 and r["map_segments"] > 0 and r["model"] == "small"
+PY
+
+# Errors name what was wrong.
+if "$bin" bench --steps zero 2> "$tmp/err"; then exit 1; fi
+grep -q "steps zero" "$tmp/err"
+if "$bin" bench --model nope.safetensors --steps 1 2> "$tmp/err"; then exit 1; fi
+grep -q "nope" "$tmp/err"
+echo "bench_test: ok"
