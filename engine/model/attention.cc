@@ -56,7 +56,7 @@ struct TableTerms {
   Mat per_row;  // scratch: heads x table rows, or g x table rows
 
   void add_scores(const QueryKeys& set, const float* u, int heads, int r, float* s, int stride) {
-    per_row.noalias() = MatMap(u, heads, r) * set.table->transpose();
+    per_row.noalias() = MatMap(u, heads, r).lazyProduct(set.table->transpose());  // tiny: no GEMM set-up
     const int mp = set.posed();
     for (int h = 0; h < heads; ++h)
       for (size_t t = 0; t < set.table_rows.size(); ++t) s[h * stride + mp + t] += per_row(h, set.table_rows[t]);
@@ -66,7 +66,7 @@ struct TableTerms {
     const int mp = set.posed();
     for (int h = 0; h < heads; ++h)
       for (size_t t = 0; t < set.table_rows.size(); ++t) per_row(h, set.table_rows[t]) += a[h * stride + mp + t];
-    Eigen::Map<Mat>(rel, heads, r).noalias() += per_row * *set.table;
+    Eigen::Map<Mat>(rel, heads, r).noalias() += per_row.lazyProduct(*set.table);
   }
 };
 
