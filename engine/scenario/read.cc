@@ -2,11 +2,10 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <system_error>
 
 #include "absl/strings/str_cat.h"
+#include "engine/io/file_io.h"
 #include "engine/scenario/gpudrive_json.h"
 #include "engine/scenario/tfrecord.h"
 #include "engine/scenario/validate.h"
@@ -25,17 +24,8 @@ absl::Status not_found(const std::string& path) {
   return absl::NotFoundError(absl::StrCat(path, ": no such file or directory"));
 }
 
-absl::StatusOr<std::string> read_whole_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return not_found(path);
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  if (in.bad()) return absl::InternalError(absl::StrCat(path, ": read failed"));
-  return std::move(buf).str();
-}
-
 absl::Status read_json(const std::string& path, std::vector<Scenario>* out) {
-  auto text = read_whole_file(path);
+  auto text = file_read_all(path);  // says why a file cannot be read (missing, a directory, no permission)
   if (!text.ok()) return text.status();
   auto s = scenario_from_gpudrive_json(*text, path);
   if (!s.ok()) return s.status();
