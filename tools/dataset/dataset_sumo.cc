@@ -14,6 +14,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "engine/dataset/rng.h"
+#include "engine/io/file_io.h"
 #include "nlohmann/json.hpp"
 #include "tools/cli_args.h"
 #include "tools/dataset/dataset_commands.h"
@@ -275,15 +276,9 @@ int run(const Options& o) {
   m["validation"] = fidelity_summary(writer.fidelity(), writer.validated());
   m["jobs"] = jobs;
   const std::string manifest = o.out + "/MANIFEST";
-  {
-    std::ofstream f(manifest + ".tmp");
-    f << m.dump(2) << "\n";
-    f.close();
-    std::error_code ec;
-    if (!f || (fs::rename(manifest + ".tmp", manifest, ec), ec)) {
-      std::fprintf(stderr, "dataset sumo: cannot write %s\n", manifest.c_str());
-      return 1;
-    }
+  if (auto st = file_write_atomically(manifest, m.dump(2) + "\n"); !st.ok()) {
+    std::fprintf(stderr, "dataset sumo: %s\n", std::string(st.message()).c_str());
+    return 1;
   }
   const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("wrote %d scenarios in %d shards to %s in %.1f s (%.2f scenarios/s, %d workers)\n", total,
