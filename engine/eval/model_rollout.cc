@@ -13,17 +13,6 @@
 #include "engine/tokens/resample.h"
 
 namespace ss {
-namespace {
-
-ObjectType object_type_of(int model_type) {
-  switch (model_type) {
-    case 1: return ObjectType::pedestrian;
-    case 2: return ObjectType::cyclist;
-    default: return ObjectType::vehicle;
-  }
-}
-
-}  // namespace
 
 absl::StatusOr<std::vector<StepResult>> run_model_rollout(std::shared_ptr<const Model> model,
                                                           std::shared_ptr<const Scenario> scenario,

@@ -100,12 +100,13 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   auto token = [&](int j) -> const DecoderToken& { return j < c ? cache.tokens[j] : tokens[j - c]; };
   TokenIndex index;
   for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) index.add(token(j), j);
-  std::vector<Anchor> anchors = cache.anchors;
-  for (const DecoderToken& t : tokens) anchors.push_back(anchor_of(t));
+  std::vector<Anchor> fresh;  // the new tokens' anchors; the cached ones are in cache.anchors
+  for (const DecoderToken& t : tokens) fresh.push_back(anchor_of(t));
+  auto anchor = [&](int j) -> const Anchor& { return j < c ? cache.anchors[j] : fresh[j - c]; };
 
   KeySets out;
   std::vector<int> candidates, keys, spatial;
-  std::vector<int> seen(anchors.size(), -1);  // the query that last took each key: candidates without a sort
+  std::vector<int> seen(c + tokens.size(), -1);  // the query that last took each key: candidates without a sort
   std::vector<double> dist;
   std::vector<int64_t> order;
   for (size_t i = 0; i < tokens.size(); ++i) {
@@ -155,7 +156,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     auto set = std::make_unique<QueryKeys>();
     std::vector<int> table_keys;
     for (int j : keys) {
-      if (anchors[c + i].has_pose && anchors[j].has_pose) {
+      if (fresh[i].has_pose && anchor(j).has_pose) {
         set->keys.push_back(j);
       } else {
         table_keys.push_back(j);
@@ -164,7 +165,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     }
     Mat f(set->keys.size(), kRelationFeatures);
     for (size_t e = 0; e < set->keys.size(); ++e) {
-      const RelationFeatures rf = relation_features(anchors[c + i], anchors[set->keys[e]]);
+      const RelationFeatures rf = relation_features(fresh[i], anchor(set->keys[e]));
       for (int col = 0; col < kRelationFeatures; ++col) f(e, col) = rf[col];
     }
     set->relation = relation_embedding(f, self_relation_);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <system_error>
 
 #include "absl/strings/str_cat.h"
@@ -24,37 +25,14 @@ absl::Status not_found(const std::string& path) {
   return absl::NotFoundError(absl::StrCat(path, ": no such file or directory"));
 }
 
-absl::Status read_json(const std::string& path, std::vector<Scenario>* out) {
-  auto text = file_read_all(path);  // says why a file cannot be read (missing, a directory, no permission)
-  if (!text.ok()) return text.status();
-  auto s = scenario_from_gpudrive_json(*text, path);
-  if (!s.ok()) return s.status();
-  out->push_back(std::move(*s));
-  return absl::OkStatus();
-}
-
-absl::Status read_tfrecord(const std::string& path, std::vector<Scenario>* out) {
-  // One record at a time: a WOMD shard is hundreds of megabytes, and only the decoded scenarios need to stay.
-  auto reader = TfRecordReader::open(path);
-  if (!reader.ok()) return reader.status();
-  std::string record;
-  while (true) {
-    const int index = reader->records_read();
-    auto more = reader->next(&record);
-    if (!more.ok()) return more.status();
-    if (!*more) break;
-    auto s = scenario_from_womd_bytes(record, absl::StrCat(path, " record ", index));
-    if (!s.ok()) return s.status();
-    out->push_back(std::move(*s));
-  }
-  if (reader->records_read() == 0)
-    return absl::InvalidArgumentError(absl::StrCat(path, ": holds no scenarios (no TFRecord records)"));
-  return absl::OkStatus();
-}
-
 absl::Status read_file(const std::string& path, std::vector<Scenario>* out) {
-  if (is_json_name(fs::path(path).filename().string())) return read_json(path, out);
-  return read_tfrecord(path, out);
+  auto count = for_each_scenario(path, [&](Scenario&& s) {
+    out->push_back(std::move(s));
+    return absl::OkStatus();
+  });
+  if (!count.ok()) return count.status();
+  if (*count == 0) return absl::InvalidArgumentError(absl::StrCat(path, ": holds no scenarios (no TFRecord records)"));
+  return absl::OkStatus();
 }
 
 absl::Status read_path(const std::string& path, std::vector<Scenario>* out) {
@@ -66,6 +44,31 @@ absl::Status read_path(const std::string& path, std::vector<Scenario>* out) {
 }
 
 }  // namespace
+
+absl::StatusOr<int> for_each_scenario(const std::string& path, const std::function<absl::Status(Scenario&&)>& fn) {
+  if (is_json_name(fs::path(path).filename().string())) {
+    auto text = file_read_all(path);  // says why a file cannot be read (missing, a directory, no permission)
+    if (!text.ok()) return text.status();
+    auto s = scenario_from_gpudrive_json(*text, path);
+    if (!s.ok()) return s.status();
+    if (auto st = fn(std::move(*s)); !st.ok()) return st;
+    return 1;
+  }
+  // One record at a time: a WOMD shard is hundreds of megabytes, and only what `fn` keeps needs to stay.
+  auto reader = TfRecordReader::open(path);
+  if (!reader.ok()) return reader.status();
+  std::string record;
+  while (true) {
+    const int index = reader->records_read();
+    auto more = reader->next(&record);
+    if (!more.ok()) return more.status();
+    if (!*more) break;
+    auto s = scenario_from_womd_bytes(record, absl::StrCat(path, " record ", index));
+    if (!s.ok()) return s.status();
+    if (auto st = fn(std::move(*s)); !st.ok()) return st;
+  }
+  return reader->records_read();
+}
 
 absl::StatusOr<std::vector<std::string>> list_scenario_files(const std::string& path, bool recursive) {
   std::error_code ec;

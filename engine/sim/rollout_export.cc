@@ -2,18 +2,11 @@
 
 #include <map>
 
+#include "engine/tokens/fidelity.h"
 #include "engine/tokens/resample.h"
 
 namespace ss {
 namespace {
-
-ObjectType object_type_of(int model_type) {
-  switch (model_type) {
-    case 1: return ObjectType::pedestrian;
-    case 2: return ObjectType::cyclist;
-    default: return ObjectType::vehicle;
-  }
-}
 
 SignalState womd_state(LightState s) {
   switch (s) {

@@ -29,6 +29,14 @@ int model_type(ObjectType t) {
   }
 }
 
+ObjectType object_type_of(int model_type) {
+  switch (model_type) {
+    case 1: return ObjectType::pedestrian;
+    case 2: return ObjectType::cyclist;
+    default: return ObjectType::vehicle;
+  }
+}
+
 const char* model_type_name(int t) {
   static constexpr const char* kNames[kNumModelTypes] = {"vehicle", "pedestrian", "cyclist"};
   return t >= 0 && t < kNumModelTypes ? kNames[t] : "invalid";

@@ -28,6 +28,8 @@ struct ErrorStats {
 inline constexpr int kNumModelTypes = 3;  // vehicle, pedestrian, cyclist: the agent types the model knows
 // 0 vehicle, 1 pedestrian, 2 cyclist; -1 for unset and other (not modelled).
 int model_type(ObjectType t);
+// The inverse: the scenario type of model type 0, 1 or 2 (anything else reads as a vehicle).
+ObjectType object_type_of(int model_type);
 const char* model_type_name(int model_type);
 
 struct TokenizationFidelity {

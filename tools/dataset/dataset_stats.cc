@@ -5,10 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "absl/strings/str_cat.h"
 #include "engine/scenario/read.h"
-#include "engine/scenario/tfrecord.h"
-#include "engine/scenario/womd_proto.h"
 #include "tools/cli_args.h"
 #include "tools/dataset/dataset_commands.h"
 #include "tools/dataset/scenario_stats.h"
@@ -17,25 +14,11 @@ namespace ss::dataset {
 namespace {
 
 absl::Status add_file(const std::string& path, ScenarioStats* stats) {
-  if (path.ends_with(".json")) {
-    auto s = read_scenarios(path);
-    if (!s.ok()) return s.status();
-    for (const Scenario& x : *s) stats->add(x);
+  auto count = for_each_scenario(path, [&](Scenario&& s) {
+    stats->add(s);
     return absl::OkStatus();
-  }
-  auto reader = TfRecordReader::open(path);
-  if (!reader.ok()) return reader.status();
-  std::string record;
-  while (true) {
-    const int index = reader->records_read();
-    auto more = reader->next(&record);
-    if (!more.ok()) return more.status();
-    if (!*more) break;
-    auto s = scenario_from_womd_bytes(record, absl::StrCat(path, " record ", index));
-    if (!s.ok()) return s.status();
-    stats->add(*s);
-  }
-  return absl::OkStatus();
+  });
+  return count.status();
 }
 
 }  // namespace

@@ -112,8 +112,11 @@ TEST_F(WindowsTest, WindowsWithCollisionsOrTeleportsAreDropped) {
   // v2 is not an ego in window 0 (egos must have no incident), so nothing is dropped for its teleport.
   EXPECT_EQ(cut.dropped_teleport, 0);
   ASSERT_EQ(cut.scenarios.size(), 3u);
-  for (const Scenario& s : cut.scenarios)
-    if (s.id.starts_with("t_f0_")) EXPECT_NE(s.tracks[0].id, 3);
+  for (const Scenario& s : cut.scenarios) {
+    if (s.id.starts_with("t_f0_")) {
+      EXPECT_NE(s.tracks[0].id, 3);
+    }
+  }
 }
 
 TEST_F(WindowsTest, JumpsAndWhipTurnsAreImplausible) {

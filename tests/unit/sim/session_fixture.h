@@ -33,6 +33,18 @@ inline World load_world(const std::string& config = "small", uint64_t weight_see
   return w;
 }
 
+// A test suite whose tests share one world with the small model, loaded once for the suite.
+class SmallWorldTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { world_ = new World(load_world("small")); }
+  static void TearDownTestSuite() {
+    delete world_;
+    world_ = nullptr;
+  }
+  static const World& w() { return *world_; }
+  static inline World* world_ = nullptr;
+};
+
 inline std::unique_ptr<Session> start(const World& w, SessionOptions o) {
   auto s = Session::create(w.model, w.scenario, w.map, o);
   EXPECT_TRUE(s.ok()) << s.status();

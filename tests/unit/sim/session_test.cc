@@ -18,14 +18,7 @@ using testing::same_result;
 using testing::sdc_control;
 using testing::start;
 
-class SessionTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() { world_ = new testing::World(load_world("small")); }
-  static void TearDownTestSuite() { delete world_; }
-  static const testing::World& w() { return *world_; }
-  static testing::World* world_;
-};
-testing::World* SessionTest::world_ = nullptr;
+class SessionTest : public testing::SmallWorldTest {};
 
 std::vector<StepResult> roll(Session& s, const testing::World& w, int steps) {
   std::vector<StepResult> out;

@@ -19,14 +19,7 @@ using testing::start;
 
 constexpr int kTicks = 5;  // 10 Hz ticks over 2 Hz model steps, as the server runs them
 
-class TickTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() { world_ = new testing::World(load_world("small")); }
-  static void TearDownTestSuite() { delete world_; }
-  static const testing::World& w() { return *world_; }
-  static testing::World* world_;
-};
-testing::World* TickTest::world_ = nullptr;
+class TickTest : public testing::SmallWorldTest {};
 
 const AgentView* find_agent(const StepResult& r, int64_t id) {
   for (const AgentView& a : r.agents)

@@ -34,7 +34,9 @@ TEST(Fidelity, MotionTokensReproduceRealTracks) {
   // No drift: the error at each agent's last step stays near the overall mean.
   EXPECT_LT(f.ace_last_step.mean(), 2 * f.ace.mean());
   for (size_t t = 1; t < f.ace_by_step.size(); ++t)
-    if (f.ace_by_step[t].count > 100) EXPECT_LT(f.ace_by_step[t].mean(), 2 * f.ace.mean()) << "step " << t;
+    if (f.ace_by_step[t].count > 100) {
+      EXPECT_LT(f.ace_by_step[t].mean(), 2 * f.ace.mean()) << "step " << t;
+    }
 }
 
 TEST(Fidelity, AgentStateQuantisationIsHalfABin) {
