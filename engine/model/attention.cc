@@ -40,32 +40,43 @@ Mat relation_by_step(const RelationParams& p, int steps) {
 
 namespace {
 
-// Softmax of each row in place (rows are contiguous, so exp vectorises).
-void softmax_rows(Mat& s) {
+// Softmax of each row of scale * s in place (rows are contiguous, so exp vectorises; scale > 0).
+void softmax_rows(Mat& s, float scale) {
   for (Eigen::Index i = 0; i < s.rows(); ++i) {
     auto row = s.row(i).array();
-    row = (row - row.maxCoeff()).exp();
-    row /= row.sum();
+    row = ((row - row.maxCoeff()) * scale).exp();
+    row *= 1.0f / row.sum();
   }
 }
 
-// The relation terms of the keys that share table rows. Scores: s[h][posed + t] += u_h . table[row_t] (one dot
-// product per head and table row, then a lookup per key). Weighted relation: rel[h] += sum_t a[h][posed + t]
-// table[row_t] (weights summed per table row first). `s`, `a`: g x m per head as a row-major block of g rows.
+// The relation terms of the keys that share table rows, run by run. Scores: s[h][key] += u_h . table[row] (one dot
+// product per head and table row, added over the run's keys). Weighted relation: rel[h] += sum_row (sum of the run's
+// weights) table[row]. `s`, `a`: g x m per head as a row-major block of g rows.
 struct TableTerms {
   Mat per_row;  // scratch: heads x table rows, or g x table rows
 
   void add_scores(const QueryKeys& set, const float* u, int heads, int r, float* s, int stride) {
     per_row.noalias() = MatMap(u, heads, r).lazyProduct(set.table->transpose());  // tiny: no GEMM set-up
-    const int mp = set.posed();
-    for (int h = 0; h < heads; ++h)
-      for (size_t t = 0; t < set.table_rows.size(); ++t) s[h * stride + mp + t] += per_row(h, set.table_rows[t]);
+    for (int h = 0; h < heads; ++h) {
+      float* sh = s + h * stride + set.posed();
+      for (const QueryKeys::TableRun& run : set.table_runs) {
+        const float c = per_row(h, run.row);
+        for (int t = 0; t < run.count; ++t) sh[t] += c;
+        sh += run.count;
+      }
+    }
   }
   void add_weighted(const QueryKeys& set, const float* a, int heads, int r, int stride, float* rel) {
     per_row.setZero(heads, set.table->rows());
-    const int mp = set.posed();
-    for (int h = 0; h < heads; ++h)
-      for (size_t t = 0; t < set.table_rows.size(); ++t) per_row(h, set.table_rows[t]) += a[h * stride + mp + t];
+    for (int h = 0; h < heads; ++h) {
+      const float* ah = a + h * stride + set.posed();
+      for (const QueryKeys::TableRun& run : set.table_runs) {
+        float sum = 0;
+        for (int t = 0; t < run.count; ++t) sum += ah[t];
+        per_row(h, run.row) += sum;
+        ah += run.count;
+      }
+    }
     Eigen::Map<Mat>(rel, heads, r).noalias() += per_row.lazyProduct(*set.table);
   }
 };
@@ -83,11 +94,10 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
     kernel_relation_scores(shape, u, set.relation.data(), mp, scores.data(), m);
     if (mp < m) table.add_scores(set, u, shape.heads, shape.r, scores.data(), m);
   }
-  scores *= scale;
-  softmax_rows(scores);
+  softmax_rows(scores, scale);
   kernel_weighted_values(shape, scores.data(), v.data(), set.keys.data(), m, out);
   if (set.uniform) {  // the weights sum to one
-    Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_rows[0]);
+    Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_runs[0].row);
     return;
   }
   kernel_weighted_relation(shape, scores.data(), set.relation.data(), mp, m, rel_out);
@@ -149,12 +159,11 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
         s.leftCols(mp).noalias() += ug * set->relation.transpose();
         if (mp < m) table.add_scores(*set, ug.data(), g, r, s.data(), m);
       }
-      s *= scale;
-      softmax_rows(s);
+      softmax_rows(s, scale);
       og.noalias() = s * vv.middleCols(h * dh, dh);  // g x dh
       for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = og.row(c);
       if (set->uniform) {
-        rg = set->table->row(set->table_rows[0]).replicate(g, 1);  // the weights sum to one
+        rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one
       } else {
         rg.noalias() = s.leftCols(mp) * set->relation;  // g x r
         if (mp < m) table.add_weighted(*set, s.data(), g, r, m, rg.data());

@@ -54,14 +54,23 @@ Mat relation_by_step(const RelationParams& p, int steps);
 // share the rows of a small table (their h depends only on the step difference), so they cost no memory of their
 // own. Each part is in ascending key order.
 struct QueryKeys {
+  struct TableRun {
+    int row = 0, count = 0;  // `count` consecutive keys that share row `row` of the table
+  };
   std::vector<int> keys;
-  Mat relation;                 // posed() x relation_dim: h of keys[j] for j < posed()
-  const Mat* table = nullptr;   // rows of h shared by the remaining keys (relation_by_step), when there are any
-  std::vector<int> table_rows;  // for keys[posed() + t]: its row of `table`
-  bool uniform = false;         // no posed keys and one table row for all: the relation term is then one constant
-                                // per query and head, which the softmax cancels, and is skipped
+  Mat relation;                      // posed() x relation_dim: h of keys[j] for j < posed()
+  const Mat* table = nullptr;        // rows of h shared by the remaining keys (relation_by_step), when there are any
+  std::vector<TableRun> table_runs;  // keys[posed()..] in runs by table row (keys in sequence order share their
+                                     // step difference, so the runs are few and long)
+  bool uniform = false;              // no posed keys and one table row for all: the relation term is then one
+                                     // constant per query and head, which the softmax cancels, and is skipped
 
   int posed() const { return static_cast<int>(relation.rows()); }
+  // Appends the table row of the next key after the posed ones.
+  void add_table_row(int row) {
+    if (!table_runs.empty() && table_runs.back().row == row) ++table_runs.back().count;
+    else table_runs.push_back({row, 1});
+  }
 };
 
 // Attention for a batch of queries. `x`: the queries' normalised inputs (n x d). `k`, `v`: projected keys and values

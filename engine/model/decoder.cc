@@ -153,14 +153,14 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
 
     // Pairs with a position on both sides go through the relation MLP; the others depend only on the step
     // difference and share the rows of the table.
-    auto set = std::make_unique<QueryKeys>();
+    auto set = std::make_shared<QueryKeys>();
     std::vector<int> table_keys;
     for (int j : keys) {
       if (fresh[i].has_pose && anchor(j).has_pose) {
         set->keys.push_back(j);
       } else {
         table_keys.push_back(j);
-        set->table_rows.push_back(q.step - token(j).step);
+        set->add_table_row(q.step - token(j).step);
       }
     }
     Mat f(set->keys.size(), kRelationFeatures);
@@ -177,36 +177,35 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   return out;
 }
 
-Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderToken> tokens) const {
+Model::KeySets Model::cross_keys(const MapContext& map, KvCache& cache, std::span<const DecoderToken> tokens) const {
   KeySets out;
   const int m = map.size();
   const QueryKeys* whole_map = nullptr;  // for queries without a position: every segment, no spatial relation
-  std::map<std::tuple<double, double, double>, const QueryKeys*> by_pose;  // RS and motion of an agent share a pose
   for (const DecoderToken& q : tokens) {
-    if (!q.has_pose && whole_map) {
+    if (!q.has_pose) {
+      if (!whole_map) {
+        auto set = std::make_shared<QueryKeys>();
+        set->keys.resize(m);
+        for (int j = 0; j < m; ++j) set->keys[j] = j;
+        set->table = &cross_relation_at_rest_;  // no position: every map key has the same relation
+        set->table_runs = {{0, m}};
+        set->uniform = true;
+        whole_map = set.get();
+        out.sets.push_back(std::move(set));
+      }
       out.per_query.push_back(whole_map);
       continue;
     }
-    if (q.has_pose) {
-      auto it = by_pose.find({q.pose.x, q.pose.y, q.pose.heading});
-      if (it != by_pose.end()) {
-        out.per_query.push_back(it->second);
-        continue;
-      }
-    }
-    auto set = std::make_unique<QueryKeys>();
-    if (!q.has_pose) {
-      set->keys.resize(m);
-      for (int j = 0; j < m; ++j) set->keys[j] = j;
-    } else {
+    CrossKeyEntry& entry = cache.cross_keys[{q.pose.x, q.pose.y, q.pose.heading}];
+    entry.last_step = std::max(entry.last_step, q.step);
+    if (!entry.keys) {
+      auto set = std::make_shared<QueryKeys>();
       const std::vector<int> near = map.index.k_nearest({q.pose.x, q.pose.y}, config().knn_k);
       std::vector<double> dist;
       std::vector<int64_t> order(near.begin(), near.end());
       for (int j : near) dist.push_back(distance({q.pose.x, q.pose.y}, {map.segments[j].pose.x, map.segments[j].pose.y}));
       for (int pos : nearest_within(dist, order, limit_)) set->keys.push_back(near[pos]);
       std::sort(set->keys.begin(), set->keys.end());
-    }
-    if (q.has_pose) {
       // Map tokens are static: they carry the query's step, so the step difference is 0.
       const Anchor qa(true, q.pose, 0);
       Mat f(set->keys.size(), kRelationFeatures);
@@ -215,16 +214,14 @@ Model::KeySets Model::cross_keys(const MapContext& map, std::span<const DecoderT
         for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
       }
       set->relation = relation_embedding(f, cross_relation_);
-    } else {
-      set->table = &cross_relation_at_rest_;  // no position: every map key has the same relation
-      set->table_rows.assign(set->keys.size(), 0);
-      set->uniform = true;
+      entry.keys = set;
+      out.sets.push_back(std::move(set));
     }
-    if (!q.has_pose) whole_map = set.get();
-    else by_pose[{q.pose.x, q.pose.y, q.pose.heading}] = set.get();
-    out.per_query.push_back(set.get());
-    out.sets.push_back(std::move(set));
+    out.per_query.push_back(entry.keys.get());
   }
+  // Poses not read at the newest step (an agent that moved, a light gone) are not kept.
+  const int newest = tokens.back().step;
+  std::erase_if(cache.cross_keys, [&](const auto& e) { return e.second.last_step < newest; });
   return out;
 }
 
@@ -241,7 +238,7 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
   if (n == 0) return Mat(0, c.d_model);
   for (int i = 0; i < n; ++i) tokens[i].seq = cache.next_seq + i;
   const KeySets self = self_keys(cache, tokens);
-  const KeySets cross = cross_keys(map, tokens);
+  const KeySets cross = cross_keys(map, cache, tokens);
   const int total = cache.size() + n;
   std::vector<const QueryKeys*> self_out;  // the last layer's self-attention runs for the output rows only
   for (int i : outputs) self_out.push_back(self.per_query[i]);

@@ -11,6 +11,7 @@ void KvCache::init(int layers, int d) {
   v.assign(layers, {});
   d_model = d;
   next_seq = 0;
+  cross_keys.clear();
 }
 
 void KvCache::evict_before(int first_step) {
@@ -41,6 +42,11 @@ void KvCache::truncate(int n) {
 size_t KvCache::bytes() const {
   size_t b = tokens.capacity() * sizeof(DecoderToken) + anchors.capacity() * sizeof(Anchor);
   for (size_t l = 0; l < k.size(); ++l) b += (k[l].capacity() + v[l].capacity()) * sizeof(float);
+  for (const auto& [pose, e] : cross_keys) {
+    const QueryKeys& q = *e.keys;
+    b += sizeof(pose) + sizeof(e) + sizeof(q) + 4 * sizeof(void*) + q.keys.capacity() * sizeof(int) +
+         q.table_runs.capacity() * sizeof(QueryKeys::TableRun) + q.relation.size() * sizeof(float);
+  }
   return b;
 }
 

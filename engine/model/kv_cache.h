@@ -2,6 +2,9 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
+#include <memory>
+#include <tuple>
 #include <vector>
 
 #include "engine/model/attention.h"
@@ -20,6 +23,15 @@ struct DecodeWork {
   int64_t relation_rows = 0;        // relation MLP evaluations (once per decode call, shared by the layers)
 };
 
+// The map keys a query at one pose reads in cross-attention, with their relation rows: a function of the pose and
+// the map alone, so a session keeps those of its recent poses. Lights and agents' anchor segments keep their pose
+// from step to step, and an agent's motion token has its relative-state token's pose.
+struct CrossKeyEntry {
+  std::shared_ptr<const QueryKeys> keys;
+  int last_step = 0;  // the last step whose tokens read it
+};
+using CrossKeyCache = std::map<std::tuple<double, double, double>, CrossKeyEntry>;
+
 struct KvCache {
   std::vector<DecoderToken> tokens;     // sequence order, oldest first
   std::vector<Anchor> anchors;          // each token's place as a relation anchor (its heading's cos and sin computed once)
@@ -27,6 +39,7 @@ struct KvCache {
   int d_model = 0;
   int64_t next_seq = 0;                 // seq of the next token appended
   DecodeWork work;                      // everything decoded into this cache so far
+  CrossKeyCache cross_keys;             // by pose (x, y, heading); entries unused at the newest step are dropped
 
   void init(int layers, int d);
   int size() const { return static_cast<int>(tokens.size()); }

@@ -106,11 +106,12 @@ class Model {
   // Queries may share one QueryKeys (e.g. every query without a position reads the whole map the same way), so the
   // result is the distinct key sets plus one pointer per query.
   struct KeySets {
-    std::vector<std::unique_ptr<QueryKeys>> sets;
+    std::vector<std::shared_ptr<const QueryKeys>> sets;  // the sets computed by this call
     std::vector<const QueryKeys*> per_query;
   };
   KeySets self_keys(const KvCache& cache, std::span<const DecoderToken> tokens) const;
-  KeySets cross_keys(const MapContext& map, std::span<const DecoderToken> tokens) const;
+  // Reuses and refreshes the cache's cross-key sets (cache.cross_keys).
+  KeySets cross_keys(const MapContext& map, KvCache& cache, std::span<const DecoderToken> tokens) const;
   void count_work(DecodeWork& w, const KeySets& self, const KeySets& cross, std::span<const int> outputs) const;
 
   Weights weights_;
