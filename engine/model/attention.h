@@ -52,7 +52,7 @@ Mat relation_by_step(const RelationParams& p, int steps);
 // The keys one query reads: rows of the key/value matrices and their relation embeddings. Keys whose pair has
 // positions on both sides come first, each with its own row of `relation`; the others (a side without a position)
 // share the rows of a small table (their h depends only on the step difference), so they cost no memory of their
-// own. Each part is in ascending key order.
+// own. Each part is in sequence order (for a KV cache, the rows are ring rows, so not always ascending).
 struct QueryKeys {
   struct TableRun {
     int row = 0, count = 0;  // `count` consecutive keys that share row `row` of the table

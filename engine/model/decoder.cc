@@ -170,6 +170,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     }
     set->relation = relation_embedding(f, self_relation_);
     set->keys.insert(set->keys.end(), table_keys.begin(), table_keys.end());
+    for (int& j : set->keys) j = cache.row(j);  // the attention reads keys and values at their ring rows
     set->table = &self_relation_by_step_;
     out.per_query.push_back(set.get());
     out.sets.push_back(std::move(set));
@@ -237,9 +238,9 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
   const int n = static_cast<int>(tokens.size());
   if (n == 0) return Mat(0, c.d_model);
   for (int i = 0; i < n; ++i) tokens[i].seq = cache.next_seq + i;
+  cache.reserve(cache.size() + n);  // before the keys are named by their ring rows
   const KeySets self = self_keys(cache, tokens);
   const KeySets cross = cross_keys(map, cache, tokens);
-  const int total = cache.size() + n;
   std::vector<const QueryKeys*> self_out;  // the last layer's self-attention runs for the output rows only
   for (int i : outputs) self_out.push_back(self.per_query[i]);
   count_work(cache.work, self, cross, outputs);
@@ -252,9 +253,13 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
                             MatMap(map.cross_values[l].data(), map.size(), c.d_model), cross.per_query);
     const Mat xs = layer_norm(x, L.self_norm);
     const Mat k = linear(xs, L.self.key), v = linear(xs, L.self.value);
-    cache.k[l].insert(cache.k[l].end(), k.data(), k.data() + k.size());
-    cache.v[l].insert(cache.v[l].end(), v.data(), v.data() + v.size());
-    const MatMap keys(cache.k[l].data(), total, c.d_model), values(cache.v[l].data(), total, c.d_model);
+    for (int i = 0; i < n; ++i) {
+      const size_t at = static_cast<size_t>(cache.row(cache.size() + i)) * c.d_model;
+      std::copy_n(k.row(i).data(), c.d_model, cache.k[l].data() + at);
+      std::copy_n(v.row(i).data(), c.d_model, cache.v[l].data() + at);
+    }
+    const MatMap keys(cache.k[l].data(), cache.capacity, c.d_model);
+    const MatMap values(cache.v[l].data(), cache.capacity, c.d_model);
     if (l + 1 == c.decoder_layers) {
       // Every token's keys and values are in the cache now; what follows only shapes the outputs asked for.
       x = x(outputs, Eigen::all).eval();

@@ -9,23 +9,40 @@ void KvCache::init(int layers, int d) {
   anchors.clear();
   k.assign(layers, {});
   v.assign(layers, {});
+  head = 0;
+  capacity = 0;
   d_model = d;
   next_seq = 0;
   cross_keys.clear();
+}
+
+void KvCache::reserve(int n) {
+  if (n <= capacity) return;
+  const int grown = std::max(n, 2 * capacity);
+  const size_t d = d_model;
+  auto relay = [&](std::vector<float>& ring) {
+    std::vector<float> fresh(static_cast<size_t>(grown) * d);
+    for (int j = 0; j < size(); ++j)
+      std::copy_n(ring.data() + static_cast<size_t>(row(j)) * d, d, fresh.data() + static_cast<size_t>(j) * d);
+    ring = std::move(fresh);
+  };
+  for (size_t l = 0; l < k.size(); ++l) {
+    relay(k[l]);
+    relay(v[l]);
+  }
+  head = 0;
+  capacity = grown;
 }
 
 void KvCache::evict_before(int first_step) {
   // Tokens are appended step by step, so the old ones form a prefix.
   const auto first_kept = std::find_if(tokens.begin(), tokens.end(),
                                        [&](const DecoderToken& t) { return t.step >= first_step; });
-  const size_t drop = first_kept - tokens.begin();
+  const int drop = static_cast<int>(first_kept - tokens.begin());
   if (drop == 0) return;
+  head = drop == size() ? 0 : row(drop);
   tokens.erase(tokens.begin(), first_kept);
   anchors.erase(anchors.begin(), anchors.begin() + drop);
-  for (size_t l = 0; l < k.size(); ++l) {
-    k[l].erase(k[l].begin(), k[l].begin() + drop * d_model);
-    v[l].erase(v[l].begin(), v[l].begin() + drop * d_model);
-  }
 }
 
 void KvCache::truncate(int n) {
@@ -33,10 +50,6 @@ void KvCache::truncate(int n) {
   next_seq -= size() - n;
   tokens.resize(n);
   anchors.resize(n);
-  for (size_t l = 0; l < k.size(); ++l) {
-    k[l].resize(static_cast<size_t>(n) * d_model);
-    v[l].resize(static_cast<size_t>(n) * d_model);
-  }
 }
 
 size_t KvCache::bytes() const {

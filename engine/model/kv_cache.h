@@ -35,7 +35,10 @@ using CrossKeyCache = std::map<std::tuple<double, double, double>, CrossKeyEntry
 struct KvCache {
   std::vector<DecoderToken> tokens;     // sequence order, oldest first
   std::vector<Anchor> anchors;          // each token's place as a relation anchor (its heading's cos and sin computed once)
-  std::vector<std::vector<float>> k, v; // per decoder layer: tokens.size() rows of d_model, row-major
+  std::vector<std::vector<float>> k, v; // per decoder layer: a ring of `capacity` rows of d_model; token j's keys and
+                                        // values are at row(j), so evicting old tokens moves no data
+  int head = 0;                         // the ring row of token 0
+  int capacity = 0;                     // rows allocated per layer
   int d_model = 0;
   int64_t next_seq = 0;                 // seq of the next token appended
   DecodeWork work;                      // everything decoded into this cache so far
@@ -43,8 +46,12 @@ struct KvCache {
 
   void init(int layers, int d);
   int size() const { return static_cast<int>(tokens.size()); }
-  MatMap keys(int layer) const { return MatMap(k[layer].data(), size(), d_model); }
-  MatMap values(int layer) const { return MatMap(v[layer].data(), size(), d_model); }
+  int row(int j) const { return head + j < capacity ? head + j : head + j - capacity; }
+  // Makes room for `n` tokens (when it grows, the ring is laid out again from row 0).
+  void reserve(int n);
+  // Token j's keys or values at `layer` (d_model floats).
+  const float* key_row(int layer, int j) const { return k[layer].data() + static_cast<size_t>(row(j)) * d_model; }
+  const float* value_row(int layer, int j) const { return v[layer].data() + static_cast<size_t>(row(j)) * d_model; }
   // Drops tokens of steps before `first_step`: nothing later may attend to them (mask.h).
   void evict_before(int first_step);
   // Drops the newest tokens beyond the first `n` (undoes a decode, e.g. a rejected agent sample).
