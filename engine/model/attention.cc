@@ -40,15 +40,6 @@ Mat relation_by_step(const RelationParams& p, int steps) {
 
 namespace {
 
-// Softmax of each row of scale * s in place (rows are contiguous, so exp vectorises; scale > 0).
-void softmax_rows(Mat& s, float scale) {
-  for (Eigen::Index i = 0; i < s.rows(); ++i) {
-    auto row = s.row(i).array();
-    row = ((row - row.maxCoeff()) * scale).exp();
-    row *= 1.0f / row.sum();
-  }
-}
-
 // The relation terms of the keys that share table rows, run by run. Scores: s[h][key] += u_h . table[row] (one dot
 // product per head and table row, added over the run's keys). Weighted relation: rel[h] += sum_row (sum of the run's
 // weights) table[row]. `s`, `a`: g x m per head as a row-major block of g rows.
@@ -94,7 +85,7 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
     kernel_relation_scores(shape, u, set.relation.data(), mp, scores.data(), m);
     if (mp < m) table.add_scores(set, u, shape.heads, shape.r, scores.data(), m);
   }
-  softmax_rows(scores, scale);
+  kernel_softmax_rows(scores.data(), shape.heads, m, m, scale);
   kernel_weighted_values(shape, scores.data(), v.data(), set.keys.data(), m, out);
   if (set.uniform) {  // the weights sum to one
     Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_runs[0].row);
@@ -159,7 +150,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
         s.leftCols(mp).noalias() += ug * set->relation.transpose();
         if (mp < m) table.add_scores(*set, ug.data(), g, r, s.data(), m);
       }
-      softmax_rows(s, scale);
+      kernel_softmax_rows(s.data(), g, m, m, scale);
       og.noalias() = s * vv.middleCols(h * dh, dh);  // g x dh
       for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = og.row(c);
       if (set->uniform) {

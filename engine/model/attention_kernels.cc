@@ -2,7 +2,11 @@
 
 #include <immintrin.h>
 
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <limits>
 
 namespace ss {
 
@@ -42,6 +46,16 @@ void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, con
       for (int j = 0; j < m; ++j) sum += a[h * stride + j] * rel[j * s.r + c];
       out[h * s.r + c] = sum;
     }
+}
+
+void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale) {
+  for (int i = 0; i < rows; ++i) {
+    float* row = s + static_cast<size_t>(i) * stride;
+    const float top = *std::max_element(row, row + cols);
+    float sum = 0;
+    for (int j = 0; j < cols; ++j) sum += (row[j] = std::exp((row[j] - top) * scale));
+    for (int j = 0; j < cols; ++j) row[j] /= sum;
+  }
 }
 
 #if defined(__AVX512F__)
@@ -158,6 +172,37 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
   }
 }
 
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
+  // Whole vectors, the last one masked (its empty lanes read as -inf, whose exp is 0): no scalar exp for a tail.
+  const __m512 lowest = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
+  const int full = cols / 16;
+  const __mmask16 tail = static_cast<__mmask16>((1u << (cols % 16)) - 1);
+  for (int i = 0; i < rows; ++i) {
+    float* row = s + static_cast<size_t>(i) * stride;
+    __m512 top = lowest;
+    for (int b = 0; b < full; ++b) top = _mm512_max_ps(top, _mm512_loadu_ps(row + 16 * b));
+    if (tail) top = _mm512_max_ps(top, _mm512_mask_loadu_ps(lowest, tail, row + 16 * full));
+    const __m512 shift = _mm512_set1_ps(_mm512_reduce_max_ps(top));
+    const __m512 k = _mm512_set1_ps(scale);
+    __m512 sum = _mm512_setzero_ps();
+    auto exp_at = [&](__m512 x) { return Eigen::internal::pexp(_mm512_mul_ps(_mm512_sub_ps(x, shift), k)); };
+    for (int b = 0; b < full; ++b) {
+      const __m512 e = exp_at(_mm512_loadu_ps(row + 16 * b));
+      _mm512_storeu_ps(row + 16 * b, e);
+      sum = _mm512_add_ps(sum, e);
+    }
+    if (tail) {
+      const __m512 e = exp_at(_mm512_mask_loadu_ps(lowest, tail, row + 16 * full));
+      _mm512_mask_storeu_ps(row + 16 * full, tail, e);
+      sum = _mm512_add_ps(sum, e);
+    }
+    const __m512 inv = _mm512_set1_ps(1.0f / _mm512_reduce_add_ps(sum));
+    for (int b = 0; b < full; ++b) _mm512_storeu_ps(row + 16 * b, _mm512_mul_ps(_mm512_loadu_ps(row + 16 * b), inv));
+    if (tail)
+      _mm512_mask_storeu_ps(row + 16 * full, tail, _mm512_mul_ps(_mm512_maskz_loadu_ps(tail, row + 16 * full), inv));
+  }
+}
+
 #else  // no AVX-512: the plain forms
 
 void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
@@ -175,6 +220,9 @@ void kernel_weighted_values(const AttentionShape& s, const float* a, const float
 void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
                               float* out) {
   kernel_weighted_relation_plain(s, a, rel, m, stride, out);
+}
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
+  kernel_softmax_rows_plain(s, rows, cols, stride, scale);
 }
 
 #endif

@@ -24,6 +24,9 @@ void kernel_weighted_values(const AttentionShape& s, const float* a, const float
 void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
                               float* out);
 
+// Each of `rows` rows of s (`cols` floats, rows `stride` apart) becomes softmax(scale * row), in place (scale > 0).
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale);
+
 // The plain forms (what the fast forms must equal up to float rounding); exposed for the tests.
 void kernel_key_scores_plain(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                              float* scores);
@@ -33,5 +36,6 @@ void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const
                                   float* out);
 void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
                                     float* out);
+void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale);
 
 }  // namespace ss

@@ -65,6 +65,24 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
   kernel_weighted_relation(s, a.data(), rel.data(), mp, m, rel_fast.data());
   kernel_weighted_relation_plain(s, a.data(), rel.data(), mp, m, rel_plain.data());
   expect_near(rel_fast, rel_plain, "weighted relation (overwrites its output)");
+
+  if (m == 0) return;
+  // Softmax of the scores' rows, rows m + 3 apart (the padding must stay untouched), scores spread wide enough
+  // that exp underflows for some keys.
+  const int stride = m + 3;
+  std::vector<float> soft_fast(static_cast<size_t>(s.heads) * stride, 42.0f);
+  for (int h = 0; h < s.heads; ++h)
+    for (int j = 0; j < m; ++j) soft_fast[h * stride + j] = 30.0f * a[h * m + j];
+  std::vector<float> soft_plain = soft_fast;
+  kernel_softmax_rows(soft_fast.data(), s.heads, m, stride, 0.125f);
+  kernel_softmax_rows_plain(soft_plain.data(), s.heads, m, stride, 0.125f);
+  expect_near(soft_fast, soft_plain, "softmax rows");
+  for (int h = 0; h < s.heads; ++h) {
+    float sum = 0;
+    for (int j = 0; j < m; ++j) sum += soft_fast[h * stride + j];
+    EXPECT_NEAR(sum, 1.0f, 1e-5f) << "head " << h;
+    for (int j = m; j < stride; ++j) EXPECT_EQ(soft_fast[h * stride + j], 42.0f) << "padding of head " << h;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Shapes, KernelTest,
