@@ -343,6 +343,32 @@ TEST_F(SessionTest, CacheKeepsOnlyTheWindow) {
   EXPECT_LE(s->memory_bytes(), memory_at_8 * 11 / 10) << "memory must stay flat once the window is full";
 }
 
+TEST_F(SessionTest, CrossKeySetsAreKeptForTheNewestStepOnly) {
+  auto s = start(w(), {});
+  std::set<const QueryKeys*> before;
+  for (int i = 0; i < 6; ++i) {
+    ASSERT_TRUE(s->step({}).ok());
+    const KvCache& cache = s->cache();
+    const int newest = cache.tokens.back().step;
+    const StepResult now = s->current();
+    // At most one pose per light, per agent's anchor segment and per agent's own pose (its RS and motion tokens).
+    EXPECT_LE(cache.cross_keys.size(), now.lights.size() + 2 * now.agents.size());
+    std::set<const QueryKeys*> sets;
+    for (const auto& [pose, entry] : cache.cross_keys) {
+      EXPECT_EQ(entry.last_step, newest);
+      sets.insert(entry.keys.get());
+    }
+    // Lights keep their pose, so their sets are reused from step to step rather than built again.
+    ASSERT_FALSE(now.lights.empty()) << "the test scenario needs traffic lights";
+    if (i > 0) {
+      int reused = 0;
+      for (const QueryKeys* q : sets) reused += before.count(q);
+      EXPECT_GE(reused, static_cast<int>(now.lights.size()));
+    }
+    before = sets;
+  }
+}
+
 TEST_F(SessionTest, OptionsAreChecked) {
   auto bad = [&](auto change) {
     SessionOptions o;
