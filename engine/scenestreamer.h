@@ -1,7 +1,8 @@
 // The engine's small public surface for programs that host it (the gRPC server): one Engine holding the model, the
 // shared map encodings and the named scenarios, and functions with shared prefixes (engine_*, session_*) to start
-// sessions from a bundled scenario or from WOMD Scenario bytes a client sent. It re-exports the Session types, so a
-// host includes only this header from the engine (the llama.cpp pattern: a C-like facade over the internals).
+// sessions from a bundled scenario or from WOMD Scenario bytes a client sent. It re-exports the Session types and the
+// whole-file reader and atomic writer (for a host's own files, e.g. snapshots), so a host includes only this header
+// from the engine (the llama.cpp pattern: a C-like facade over the internals).
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "engine/io/file_io.h"
 #include "engine/sim/session.h"
 #include "engine/sim/tick.h"
 

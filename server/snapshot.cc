@@ -2,8 +2,6 @@
 
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include "absl/strings/str_cat.h"
 
@@ -59,24 +57,14 @@ absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   put_str(out, s.session_bytes);
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  const std::string path = snapshot_path(dir, s.session_id);
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f.write(out.data(), static_cast<std::streamsize>(out.size()));
-    if (!f) return absl::InternalError(absl::StrCat("snapshot ", tmp, ": write failed"));
-  }
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) return absl::InternalError(absl::StrCat("snapshot ", path, ": rename failed: ", ec.message()));
-  return absl::OkStatus();
+  if (ec) return absl::InternalError(absl::StrCat("snapshot directory ", dir, " cannot be created: ", ec.message()));
+  return file_write_atomically(snapshot_path(dir, s.session_id), out);
 }
 
 absl::StatusOr<Snapshot> read_snapshot(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return absl::NotFoundError(absl::StrCat("snapshot ", path, " cannot be opened"));
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string in = ss.str();
+  auto bytes = file_read_all(path);
+  if (!bytes.ok()) return absl::Status(bytes.status().code(), absl::StrCat("snapshot ", bytes.status().message()));
+  const std::string& in = *bytes;
   if (in.size() < 8 || std::memcmp(in.data(), kMagic, 8) != 0)
     return absl::InvalidArgumentError(absl::StrCat("snapshot ", path, ": not a snapshot file (bad magic)"));
   Reader r{in, 8};

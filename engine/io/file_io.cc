@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <filesystem>
 #include <random>
 
 #include "absl/strings/str_cat.h"
@@ -83,6 +84,14 @@ absl::Status file_write_atomically(const std::string& path, std::string_view byt
   }
   if (::close(fd) != 0) return fail(errno, "close failed");
   if (std::rename(tmp.c_str(), path.c_str()) != 0) return fail(errno, absl::StrCat("cannot rename to ", path));
+  // The rename is durable once the directory is synced too. Filesystems that cannot sync a directory say EINVAL.
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  const int dfd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd < 0) return errno_status(errno, absl::StrCat(path, ": written, but its directory cannot be opened to sync"));
+  const int synced = ::fsync(dfd);
+  const int err = errno;
+  ::close(dfd);
+  if (synced != 0 && err != EINVAL) return errno_status(err, absl::StrCat(path, ": written, but fsync of its directory failed"));
   return absl::OkStatus();
 }
 

@@ -18,9 +18,10 @@ absl::Status errno_status(int err, const std::string& what);
 // a pipe); DATA_LOSS if it shrank while being read.
 absl::StatusOr<std::string> file_read_all(const std::string& path);
 
-// Writes `bytes` to a temporary file next to `path`, syncs it and renames it over `path`: a reader sees the old file
-// or the new one, never half of one, and a failed write leaves the old file as it was. The temporary file is removed
-// on failure. NOT_FOUND if the directory does not exist.
+// Writes `bytes` to a temporary file next to `path`, syncs it, renames it over `path` and syncs the directory: a
+// reader sees the old file or the new one, never half of one, a failed write leaves the old file as it was, and once
+// this returns OK the new file survives a crash. The temporary file is removed on failure. NOT_FOUND if the directory
+// does not exist.
 absl::Status file_write_atomically(const std::string& path, std::string_view bytes);
 
 }  // namespace ss
