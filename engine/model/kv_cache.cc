@@ -18,7 +18,7 @@ void KvCache::init(int layers, int d) {
 
 void KvCache::reserve(int n) {
   if (n <= capacity) return;
-  const int grown = std::max(n, 2 * capacity);
+  const int grown = std::max(n, 2 * size());  // as a vector grows: twice what is held, not twice the ring
   const size_t d = d_model;
   auto relay = [&](std::vector<float>& ring) {
     std::vector<float> fresh(static_cast<size_t>(grown) * d);
