@@ -7,8 +7,8 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <memory>
 #include <filesystem>
+#include <memory>
 #include <random>
 
 #include "absl/strings/str_cat.h"
@@ -87,11 +87,12 @@ absl::Status file_write_atomically(const std::string& path, std::string_view byt
   // The rename is durable once the directory is synced too. Filesystems that cannot sync a directory say EINVAL.
   const std::string dir = std::filesystem::path(path).parent_path().string();
   const int dfd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd < 0) return errno_status(errno, absl::StrCat(path, ": written, but its directory cannot be opened to sync"));
+  if (dfd < 0) return errno_status(errno, absl::StrCat(path, ": written, but its directory cannot be opened"));
   const int synced = ::fsync(dfd);
   const int err = errno;
   ::close(dfd);
-  if (synced != 0 && err != EINVAL) return errno_status(err, absl::StrCat(path, ": written, but fsync of its directory failed"));
+  if (synced != 0 && err != EINVAL)
+    return errno_status(err, absl::StrCat(path, ": written, but its directory could not be synced"));
   return absl::OkStatus();
 }
 

@@ -57,7 +57,8 @@ size_t KvCache::bytes() const {
   for (size_t l = 0; l < k.size(); ++l) b += (k[l].capacity() + v[l].capacity()) * sizeof(float);
   for (const auto& [pose, e] : cross_keys) {
     const QueryKeys& q = *e.keys;
-    b += sizeof(pose) + sizeof(e) + sizeof(q) + 4 * sizeof(void*) + q.keys.capacity() * sizeof(int) +
+    // The map node (its key, value and four links), the set and its arrays.
+    b += sizeof(pose) + sizeof(e) + 4 * sizeof(void*) + sizeof(q) + q.keys.capacity() * sizeof(int) +
          q.table_runs.capacity() * sizeof(QueryKeys::TableRun) + q.relation.size() * sizeof(float);
   }
   return b;

@@ -42,7 +42,8 @@ struct KvCache {
   int d_model = 0;
   int64_t next_seq = 0;                 // seq of the next token appended
   DecodeWork work;                      // everything decoded into this cache so far
-  CrossKeyCache cross_keys;             // by pose (x, y, heading); entries unused at the newest step are dropped
+  CrossKeyCache cross_keys;             // by pose (x, y, heading); entries unused at the newest step are dropped.
+                                        // They name one map's tokens: a cache serves one map (its session's)
 
   void init(int layers, int d);
   int size() const { return static_cast<int>(tokens.size()); }
