@@ -15,6 +15,7 @@ PACKAGES="
   sumo sumo-tools
   librsvg2-bin
   nginx
+  libtorch-dev libopenblas0-openmp
 "
 # libtorch-dev and libopenblas0-openmp join this list with the trainer (training/), which is the only part that needs
 # them: they pull in ~330 shared libraries.

@@ -1,8 +1,8 @@
 // The decoder: token embeddings, which keys each token reads, and the layer stack over the KV cache.
 #include <algorithm>
 #include <map>
-#include <unordered_map>
 
+#include "engine/model/key_select.h"
 #include "engine/model/model.h"
 
 namespace ss {
@@ -69,107 +69,32 @@ namespace {
 
 Anchor anchor_of(const DecoderToken& t) { return Anchor(t.has_pose, t.pose, t.step); }
 
-// Where to look for the keys a query may read, so that candidates are not found by scanning the whole cache.
-struct TokenIndex {
-  struct Step {
-    std::vector<int> lights, group, motion;
-    std::vector<int> bounds;  // the group's SOS and EOS (also in `group`)
-  };
-  std::map<int, Step> steps;
-  std::unordered_map<int64_t, std::vector<int>> objects;
-
-  void add(const DecoderToken& t, int i) {
-    Step& s = steps[t.step];
-    if (t.kind == TokenKind::light) s.lights.push_back(i);
-    else if (t.kind == TokenKind::motion) s.motion.push_back(i);
-    else s.group.push_back(i);
-    if (t.kind == TokenKind::sos || t.kind == TokenKind::eos) s.bounds.push_back(i);
-    if (t.object != kNoObject) objects[t.object].push_back(i);
-  }
-  const Step* at(int step) const {
-    auto it = steps.find(step);
-    return it == steps.end() ? nullptr : &it->second;
-  }
-};
-
 }  // namespace
 
 Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderToken> tokens) const {
   const int c = cache.size();
-  const int window = config().window_steps;
   auto token = [&](int j) -> const DecoderToken& { return j < c ? cache.tokens[j] : tokens[j - c]; };
-  TokenIndex index;
-  for (int j = 0; j < c + static_cast<int>(tokens.size()); ++j) index.add(token(j), j);
   std::vector<Anchor> fresh;  // the new tokens' anchors; the cached ones are in cache.anchors
   for (const DecoderToken& t : tokens) fresh.push_back(anchor_of(t));
   auto anchor = [&](int j) -> const Anchor& { return j < c ? cache.anchors[j] : fresh[j - c]; };
 
   KeySets out;
-  std::vector<int> candidates, keys, spatial;
-  std::vector<int> seen(c + tokens.size(), -1);  // the query that last took each key: candidates without a sort
-  std::vector<double> dist;
-  std::vector<int64_t> order;
+  SelfKeySelector selector(cache.tokens, tokens, config().window_steps, limit_);
+  SelfKeys keys;
   for (size_t i = 0; i < tokens.size(); ++i) {
-    const DecoderToken& q = tokens[i];
-    candidates.clear();
-    const int query = static_cast<int>(i);
-    auto take = [&](const std::vector<int>& v) {
-      for (int j : v)
-        if (seen[j] != query) {
-          seen[j] = query;
-          candidates.push_back(j);
-        }
-    };
-    if (const auto* now = index.at(q.step)) {
-      take(now->lights);
-      if (q.kind == TokenKind::motion) take(now->motion);
-      if (is_agent_state_group(q.kind)) take(now->group);
-    }
-    if (q.kind != TokenKind::motion)
-      if (const auto* prev = index.at(q.step - 1)) take(prev->motion);
-    if (is_agent_state_group(q.kind))
-      for (int s = q.step - window + 1; s < q.step; ++s)
-        if (const auto* earlier = index.at(s)) take(earlier->bounds);
-    if (q.object != kNoObject)
-      if (auto it = index.objects.find(q.object); it != index.objects.end()) take(it->second);
-
-    keys.clear();
-    spatial.clear();
-    dist.clear();
-    order.clear();
-    for (int j : candidates) {
-      const DecoderToken& k = token(j);
-      if (!may_attend(q, k, window)) continue;
-      if (is_spatial_pair(q, k)) {
-        spatial.push_back(j);
-        dist.push_back(distance({q.pose.x, q.pose.y}, {k.pose.x, k.pose.y}));
-        order.push_back(k.seq);
-      } else {
-        keys.push_back(j);
-      }
-    }
-    for (int pos : nearest_within(dist, order, limit_)) keys.push_back(spatial[pos]);
-    std::sort(keys.begin(), keys.end());
-
+    selector.select(static_cast<int>(i), keys);
     // Pairs with a position on both sides go through the relation MLP; the others depend only on the step
     // difference and share the rows of the table.
     auto set = std::make_shared<QueryKeys>();
-    std::vector<int> table_keys;
-    for (int j : keys) {
-      if (fresh[i].has_pose && anchor(j).has_pose) {
-        set->keys.push_back(j);
-      } else {
-        table_keys.push_back(j);
-        set->add_table_row(q.step - token(j).step);
-      }
-    }
+    set->keys = keys.posed;
+    for (int j : keys.unposed) set->add_table_row(tokens[i].step - token(j).step);
     Mat f(set->keys.size(), kRelationFeatures);
     for (size_t e = 0; e < set->keys.size(); ++e) {
       const RelationFeatures rf = relation_features(fresh[i], anchor(set->keys[e]));
       for (int col = 0; col < kRelationFeatures; ++col) f(e, col) = rf[col];
     }
     set->relation = relation_embedding(f, self_relation_);
-    set->keys.insert(set->keys.end(), table_keys.begin(), table_keys.end());
+    set->keys.insert(set->keys.end(), keys.unposed.begin(), keys.unposed.end());
     for (int& j : set->keys) j = cache.row(j);  // the attention reads keys and values at their ring rows
     set->table = &self_relation_by_step_;
     out.per_query.push_back(set.get());
@@ -201,12 +126,7 @@ Model::KeySets Model::cross_keys(const MapContext& map, KvCache& cache, std::spa
     entry.last_step = std::max(entry.last_step, q.step);
     if (!entry.keys) {
       auto set = std::make_shared<QueryKeys>();
-      const std::vector<int> near = map.index.k_nearest({q.pose.x, q.pose.y}, config().knn_k);
-      std::vector<double> dist;
-      std::vector<int64_t> order(near.begin(), near.end());
-      for (int j : near) dist.push_back(distance({q.pose.x, q.pose.y}, {map.segments[j].pose.x, map.segments[j].pose.y}));
-      for (int pos : nearest_within(dist, order, limit_)) set->keys.push_back(near[pos]);
-      std::sort(set->keys.begin(), set->keys.end());
+      set->keys = map_keys_near(map.segments, map.index, {q.pose.x, q.pose.y}, limit_);
       // Map tokens are static: they carry the query's step, so the step difference is 0.
       const Anchor qa(true, q.pose, 0);
       Mat f(set->keys.size(), kRelationFeatures);

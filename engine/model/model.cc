@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "engine/model/key_select.h"
 
 namespace ss {
 
@@ -155,14 +156,8 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
   for (const QueryKeys& k : keys) key_ptrs.push_back(&k);
   for (int i = 0; i < m; ++i) {
     const Pose& p = map->segments[i].pose;
-    std::vector<int> near = map->index.k_nearest({p.x, p.y}, c.knn_k);
-    std::vector<double> dist;
-    std::vector<int64_t> order(near.begin(), near.end());
-    for (int j : near) dist.push_back(distance({p.x, p.y}, {map->segments[j].pose.x, map->segments[j].pose.y}));
-    Mat f(0, kRelationFeatures);
-    for (int pos : nearest_within(dist, order, limit_)) keys[i].keys.push_back(near[pos]);
-    std::sort(keys[i].keys.begin(), keys[i].keys.end());
-    f.resize(keys[i].keys.size(), kRelationFeatures);
+    keys[i].keys = map_keys_near(map->segments, map->index, {p.x, p.y}, limit_);
+    Mat f(keys[i].keys.size(), kRelationFeatures);
     for (size_t j = 0; j < keys[i].keys.size(); ++j) {
       const RelationFeatures rf = relation_features(Anchor(true, p, 0), Anchor(true, map->segments[keys[i].keys[j]].pose, 0));
       for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];

@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "engine/map/focus.h"
 #include "engine/sim/sampling.h"
+#include "engine/sim/token_builders.h"
 #include "engine/tokens/agent_state.h"
 #include "engine/tokens/fidelity.h"
 
@@ -42,12 +43,6 @@ StepState state_from_kin(const KinematicState& k, const StepState& box) {
 
 Box box_of(const StepState& s) { return {{s.x, s.y, s.heading}, s.length, s.width}; }
 
-std::array<float, kRsFields> scaled_relative_state(const StateBins& bins) {
-  std::array<float, kRsFields> out{};
-  for (int f = 0; f < kRsFields; ++f) out[f] = 2.0f * bins[f] / (kRsBins - 1) - 1.0f;
-  return out;
-}
-
 }  // namespace
 
 int Session::effective_window() const {
@@ -61,11 +56,7 @@ Vec2 Session::roi_centre() const {
   return scenario_focus(*scenario_);
 }
 
-int Session::anchor_segment(const StepState& s) const {
-  int seg = map_->index.nearest({s.x, s.y, s.heading});
-  if (seg < 0) seg = map_->index.nearest({s.x, s.y, s.heading}, 2 * kPi);  // no segment heads its way: any
-  return seg;
-}
+int Session::anchor_segment(const StepState& s) const { return ss::anchor_segment(map_->index, s); }
 
 void Session::undo_to(int cache_size, size_t replay_size) {
   cache_.truncate(cache_size);
@@ -98,63 +89,18 @@ int Session::allocate_slot() {
   return -1;
 }
 
+TokenAgent Session::token_agent(const Agent& a) { return {a.id, a.slot, a.type, a.state, a.last_motion}; }
+
 DecoderToken Session::light_token(const Light& l) const {
-  DecoderToken t;
-  t.kind = TokenKind::light;
-  t.step = step_;
-  t.object = light_object(static_cast<int>(&l - lights_.data()));
-  t.has_pose = true;
-  t.pose = l.pose;
-  t.light_slot = static_cast<int>(&l - lights_.data());
-  t.light_state = static_cast<int>(l.state);
-  t.map_id = l.map_id;
-  return t;
+  return ss::light_token(step_, static_cast<int>(&l - lights_.data()), {l.lane, l.map_id, l.pose}, l.state);
 }
 
 void Session::group_tokens(const Agent& a, int order, std::vector<DecoderToken>& out) const {
-  DecoderToken t;
-  t.step = step_;
-  t.object = a.id;
-  t.agent_slot = a.slot;
-  t.agent_type = a.type;
-  t.kind = TokenKind::soa;
-  t.intra_index = 4 * order;
-  out.push_back(t);
-  t.kind = TokenKind::type;
-  t.intra_index = 4 * order + 1;
-  out.push_back(t);
   const int seg = anchor_segment(a.state);
-  StateBins bins{};
-  const RelativeState rel = relative_state(a.state, map_->segments[seg].pose);
-  for (int f = 0; f < kRsFields; ++f) bins[f] = state_bin(f, rel[f]);
-  t.kind = TokenKind::map_segment;
-  t.intra_index = 4 * order + 2;
-  t.has_pose = true;
-  t.pose = map_->segments[seg].pose;
-  t.map_id = seg;
-  out.push_back(t);
-  t.kind = TokenKind::relative_state;
-  t.intra_index = 4 * order + 3;
-  t.pose = {a.state.x, a.state.y, a.state.heading};
-  t.relative_state = scaled_relative_state(bins);
-  out.push_back(t);
+  agent_group_tokens(step_, token_agent(a), order, seg, map_->segments[seg], out);
 }
 
-DecoderToken Session::motion_token(const Agent& a) const {
-  DecoderToken t;
-  t.kind = TokenKind::motion;
-  t.step = step_;
-  t.object = a.id;
-  t.has_pose = true;
-  t.pose = {a.state.x, a.state.y, a.state.heading};
-  t.agent_slot = a.slot;
-  t.agent_type = a.type;
-  t.motion_action = a.last_motion;
-  const Vec2 v = rotate({a.state.vx, a.state.vy}, -a.state.heading);
-  t.motion_state = {static_cast<float>(v.x / 10), static_cast<float>(v.y / 10), static_cast<float>(a.state.length / 5),
-                    static_cast<float>(a.state.width / 2), static_cast<float>(a.state.height / 2)};
-  return t;
-}
+DecoderToken Session::motion_token(const Agent& a) const { return agent_motion_token(step_, token_agent(a)); }
 
 Mat Session::decode(std::vector<DecoderToken>& tokens) {
   std::vector<int> all(tokens.size());
@@ -320,10 +266,7 @@ absl::Status Session::decode_step(bool sample_lights, bool allow_new, int force_
   std::vector<DecoderToken> tokens;
   for (const Light& l : lights_) tokens.push_back(light_token(l));
   const int num_lights = static_cast<int>(tokens.size());
-  DecoderToken sos;
-  sos.kind = TokenKind::sos;
-  sos.step = step_;
-  tokens.push_back(sos);
+  tokens.push_back(sos_token(step_));
   for (size_t i = 0; i < agents_.size(); ++i) group_tokens(agents_[i], static_cast<int>(i), tokens);
   // Outputs read: the lights' (their next states) and the group's last token's (whether another agent follows).
   std::vector<int> outputs;
@@ -366,10 +309,7 @@ absl::Status Session::add_agents(bool allow_new, int force_new, const std::vecto
 void Session::finish_step() {
   eos_cache_size_ = cache_.size();
   std::vector<DecoderToken> tokens;
-  DecoderToken eos;
-  eos.kind = TokenKind::eos;
-  eos.step = step_;
-  tokens.push_back(eos);
+  tokens.push_back(eos_token(step_));
   std::vector<int> motion_rows;
   for (const Agent& a : agents_) {
     motion_rows.push_back(static_cast<int>(tokens.size()));

@@ -13,6 +13,7 @@
 #include "engine/model/model.h"
 #include "engine/scenario/scenario.h"
 #include "engine/sim/rng.h"
+#include "engine/sim/token_builders.h"
 #include "engine/tokens/light.h"
 #include "engine/tokens/motion.h"
 #include "engine/tokens/resample.h"
@@ -163,6 +164,7 @@ class Session {
   Vec2 roi_centre() const;
   int effective_window() const;
   int anchor_segment(const StepState& s) const;
+  static TokenAgent token_agent(const Agent& a);
   DecoderToken light_token(const Light& l) const;
   void group_tokens(const Agent& a, int order, std::vector<DecoderToken>& out) const;
   DecoderToken motion_token(const Agent& a) const;

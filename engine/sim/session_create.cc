@@ -121,34 +121,14 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return log[a].first_step < log[b].first_step; });
 
   // Lights: the lanes with a signal state at the current frame, by lane id, anchored on their lane's segment.
-  if (now_frame < static_cast<int>(scenario->signals.size())) {
-    std::vector<SignalLaneState> now = scenario->signals[now_frame];
-    std::sort(now.begin(), now.end(), [](const auto& a, const auto& b) { return a.lane < b.lane; });
-    for (const SignalLaneState& ls : now) {
-      if (static_cast<int>(s->lights_.size()) >= s->model_->config().light_slots) break;
-      Light l;
-      l.lane = ls.lane;
-      const Vec2 stop{ls.stop_point.x, ls.stop_point.y};
-      int best = -1;
-      double best_d = INFINITY;
-      for (int j = 0; j < s->map_->size(); ++j) {
-        const MapSegment& seg = s->map_->segments[j];
-        const double d = distance(stop, {seg.pose.x, seg.pose.y});
-        if (seg.kind == MapFeatureKind::lane && seg.feature_id == ls.lane && d < best_d) best = j, best_d = d;
-      }
-      if (best < 0) best = s->map_->index.nearest({stop.x, stop.y, 0}, 2 * kPi);
-      l.map_id = best;
-      l.pose = {stop.x, stop.y, s->map_->segments[best].pose.heading};
-      s->lights_.push_back(l);
-    }
+  for (const TokenLight& tl : scenario_lights(*scenario, now_frame, s->map_->segments, s->map_->index,
+                                              s->model_->config().light_slots)) {
+    Light l;
+    l.lane = tl.lane;
+    l.map_id = tl.map_id;
+    l.pose = tl.pose;
+    s->lights_.push_back(l);
   }
-  auto log_light_state = [&](int64_t lane, int step) {
-    const int frame = step * kFramesPerStep;
-    if (frame < static_cast<int>(scenario->signals.size()))
-      for (const SignalLaneState& ls : scenario->signals[frame])
-        if (ls.lane == lane) return light_state_from_womd(ls.state);
-    return LightState::unknown;
-  };
 
   // The history, teacher-forced; the model samples from the current step on.
   for (int step = 0; step <= t0; ++step) {
@@ -171,7 +151,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
       a.kin = kinematic_state(a.state);
       a.last_motion = la.motion.tokens[step];
     }
-    for (Light& l : s->lights_) l.state = log_light_state(l.lane, step);
+    for (Light& l : s->lights_) l.state = log_light_state(*scenario, l.lane, step * kFramesPerStep);
     s->trim_replay();
     const bool now = step == t0;
     const bool sample_new = now && options.mode == SessionMode::full;

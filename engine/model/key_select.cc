@@ -1,0 +1,85 @@
+#include "engine/model/key_select.h"
+
+#include <algorithm>
+
+namespace ss {
+
+SelfKeySelector::SelfKeySelector(std::span<const DecoderToken> cached, std::span<const DecoderToken> fresh,
+                                 int window_steps, const NeighbourLimit& limit)
+    : cached_(cached), fresh_(fresh), cached_size_(static_cast<int>(cached.size())), window_(window_steps),
+      limit_(limit) {
+  const int total = cached_size_ + static_cast<int>(fresh.size());
+  for (int j = 0; j < total; ++j) {
+    const DecoderToken& t = token(j);
+    Step& s = steps_[t.step];
+    if (t.kind == TokenKind::light) s.lights.push_back(j);
+    else if (t.kind == TokenKind::motion) s.motion.push_back(j);
+    else s.group.push_back(j);
+    if (t.kind == TokenKind::sos || t.kind == TokenKind::eos) s.bounds.push_back(j);
+    if (t.object != kNoObject) objects_[t.object].push_back(j);
+  }
+  seen_.assign(total, -1);
+}
+
+const SelfKeySelector::Step* SelfKeySelector::at(int step) const {
+  auto it = steps_.find(step);
+  return it == steps_.end() ? nullptr : &it->second;
+}
+
+void SelfKeySelector::select(int i, SelfKeys& out) {
+  const DecoderToken& q = fresh_[i];
+  out.posed.clear();
+  out.unposed.clear();
+  candidates_.clear();
+  auto take = [&](const std::vector<int>& v) {
+    for (int j : v)
+      if (seen_[j] != i) {
+        seen_[j] = i;
+        candidates_.push_back(j);
+      }
+  };
+  if (const Step* now = at(q.step)) {
+    take(now->lights);
+    if (q.kind == TokenKind::motion) take(now->motion);
+    if (is_agent_state_group(q.kind)) take(now->group);
+  }
+  if (q.kind != TokenKind::motion)
+    if (const Step* prev = at(q.step - 1)) take(prev->motion);
+  if (is_agent_state_group(q.kind))
+    for (int s = q.step - window_ + 1; s < q.step; ++s)
+      if (const Step* earlier = at(s)) take(earlier->bounds);
+  if (q.object != kNoObject)
+    if (auto it = objects_.find(q.object); it != objects_.end()) take(it->second);
+
+  spatial_.clear();
+  dist_.clear();
+  order_.clear();
+  for (int j : candidates_) {
+    const DecoderToken& k = token(j);
+    if (!may_attend(q, k, window_)) continue;
+    if (is_spatial_pair(q, k)) {
+      spatial_.push_back(j);
+      dist_.push_back(distance({q.pose.x, q.pose.y}, {k.pose.x, k.pose.y}));
+      order_.push_back(k.seq);
+    } else {
+      (q.has_pose && k.has_pose ? out.posed : out.unposed).push_back(j);
+    }
+  }
+  for (int pos : nearest_within(dist_, order_, limit_)) out.posed.push_back(spatial_[pos]);
+  std::sort(out.posed.begin(), out.posed.end());
+  std::sort(out.unposed.begin(), out.unposed.end());
+}
+
+std::vector<int> map_keys_near(std::span<const MapSegment> segments, const SegmentIndex& index, Vec2 p,
+                               const NeighbourLimit& limit) {
+  const std::vector<int> near = index.k_nearest(p, limit.k);
+  std::vector<double> dist;
+  std::vector<int64_t> order(near.begin(), near.end());
+  for (int j : near) dist.push_back(distance(p, {segments[j].pose.x, segments[j].pose.y}));
+  std::vector<int> keys;
+  for (int pos : nearest_within(dist, order, limit)) keys.push_back(near[pos]);
+  std::sort(keys.begin(), keys.end());
+  return keys;
+}
+
+}  // namespace ss

@@ -1,0 +1,112 @@
+// The torch model (training/) and the engine's model compute the same function: random weights made in torch,
+// exported, loaded by the engine, and both run on the same teacher-forced real scenario. Every head is compared.
+#include <gtest/gtest.h>
+
+#include "engine/model/model.h"
+#include "engine/scenario/read.h"
+#include "engine/sim/teacher_forcing.h"
+#include "training/batch.h"
+#include "training/model.h"
+
+namespace ss::train {
+namespace {
+
+// A tiny configuration (fast) that still has several heads, layers and blocks.
+ModelConfig tiny_config() {
+  ModelConfig c;
+  c.name = "tiny";
+  c.d_model = 32;
+  c.heads = 4;
+  c.encoder_layers = 1;
+  c.decoder_layers = 2;
+  c.relation_dim = 8;
+  c.polyline_dim = 16;
+  c.rs_layers = 1;
+  c.max_map_segments = 400;
+  return c;
+}
+
+// Every parameter random (biases, norms and AdaLN too, which init_weights leaves at 0 or 1).
+TorchModel random_model(const ModelConfig& c) {
+  TorchModel m(init_weights(c, 7));
+  torch::manual_seed(3);
+  torch::NoGradGuard no_grad;
+  for (const auto& [name, t] : m.named_parameters()) const_cast<torch::Tensor&>(t).copy_(torch::randn_like(t) * 0.2);
+  return m;
+}
+
+Scenario real_scenario() {
+  auto s = read_scenarios(std::string(SS_DATA_DIR) + "/womd/tfrecord/motion_data_one_scenario.tfrecord");
+  EXPECT_TRUE(s.ok()) << s.status();
+  return std::move((*s)[0]);
+}
+
+float max_diff(const Mat& engine, const torch::Tensor& t) {
+  const torch::Tensor c = t.detach().contiguous();
+  EXPECT_EQ(engine.rows(), c.size(0));
+  EXPECT_EQ(engine.cols(), c.numel() / std::max<int64_t>(1, c.size(0)));
+  float d = 0;
+  const float* p = c.data_ptr<float>();
+  for (int64_t i = 0; i < engine.size(); ++i) d = std::max(d, std::abs(engine.data()[i] - p[i]));
+  return d;
+}
+
+Mat rows_of(const Mat& m, const torch::Tensor& rows) {
+  std::vector<int> r;
+  for (int64_t i = 0; i < rows.numel(); ++i) r.push_back(static_cast<int>(rows[i].item<int64_t>()));
+  return m(r, Eigen::all);
+}
+
+TEST(Parity, TorchAndEngineAgreeOnEveryHead) {
+  const ModelConfig config = tiny_config();
+  const TorchModel torch_model = random_model(config);
+  auto engine_model = Model::create(torch_model.to_weights());
+  ASSERT_TRUE(engine_model.ok()) << engine_model.status();
+
+  TeacherForcingOptions opts;
+  opts.max_agents = 12;
+  opts.slot_seed = 5;
+  auto ex = teacher_forced_example(real_scenario(), config, opts);
+  ASSERT_TRUE(ex.ok()) << ex.status();
+  ASSERT_GT(ex->light_target.size(), 0u);
+  const Batch b = make_batch({&*ex});
+  ASSERT_GT(b.light_rows.numel(), 0);
+  ASSERT_GT(b.segment_rows[0].numel(), 0);
+
+  torch::NoGradGuard no_grad;
+  const Forward f = torch_model.forward(b);
+  const HeadLogits heads = torch_model.heads(b, f);
+
+  auto map = (*engine_model)->encode_map(ex->segments);
+  ASSERT_TRUE(map.ok()) << map.status();
+  const float tol = 1e-4f;
+  EXPECT_LT(max_diff((*map)->tokens, f.map_tokens), tol) << "map tokens";
+  std::vector<DecoderToken> tokens = ex->tokens;
+  const Mat h = (*engine_model)->decode_full(**map, tokens);
+  EXPECT_LT(max_diff(h, f.hidden), tol) << "decoder outputs";
+
+  const Model& m = **engine_model;
+  EXPECT_LT(max_diff(m.light_logits(rows_of(h, b.light_rows)), heads.light), tol) << "light head";
+  EXPECT_LT(max_diff(m.motion_logits(rows_of(h, b.motion_rows)), heads.motion), tol) << "motion head";
+  EXPECT_LT(max_diff(m.agent_type_logits(rows_of(h, b.type_rows)), heads.type), tol) << "agent type head";
+  EXPECT_LT(max_diff(m.end_of_agents_logits(rows_of(h, b.end_rows)), heads.end), tol) << "end-of-agents head";
+  EXPECT_LT(max_diff(m.map_segment_logits(rows_of(h, b.segment_rows[0]), **map), heads.segment[0]), tol)
+      << "map-segment pointer head";
+  // The relative-state head, field by field with the target's earlier fields as the prefix (as a session samples).
+  const Mat z = rows_of(h, b.state_rows);
+  ASSERT_GT(z.rows(), 0);
+  float state_diff = 0;
+  for (int r = 0; r < z.rows(); ++r) {
+    std::vector<int> prefix;
+    for (int field = 0; field < kRsFields; ++field) {
+      const Vec logits = m.relative_state_logits(z.row(r), prefix);
+      const torch::Tensor t = heads.state[r][field];
+      for (int c = 0; c < kRsBins; ++c) state_diff = std::max(state_diff, std::abs(logits[c] - t[c].item<float>()));
+      prefix.push_back(static_cast<int>(b.state_target[r][field].item<int64_t>()));
+    }
+  }
+  EXPECT_LT(state_diff, tol) << "relative-state head";
+}
+
+}  // namespace
+}  // namespace ss::train
