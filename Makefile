@@ -8,7 +8,7 @@ FUZZ_SECONDS ?= 20
 FUZZ_LONG_SECONDS ?= 600
 SERVE_DATA ?= $(firstword $(wildcard data/*.tfrecord* data/*.json) ../shared/data/womd/tfrecord)
 
-.PHONY: all deps build test unit-test fuzz-build fuzz serve clean
+.PHONY: all deps build test unit-test fuzz-build fuzz serve clean train-default
 
 all: build
 
@@ -36,6 +36,27 @@ fuzz:
 # The gRPC server with its defaults: the bundled model (or random weights, loudly), the bundled scenarios, port 50051.
 serve: build
 	$(BUILD)/server/scenestreamer-server
+
+# The default model (models/default.safetensors), reproduced from scratch: 300 SUMO scenarios, then the trainer on
+# the real train split plus them (hours on 2 cores; stop it any time and run it again: it resumes from its
+# checkpoint). The run lives outside the repository. TRAIN_FROM_COMMITTED=1 starts from the committed checkpoint
+# (models/train-checkpoint.pt) instead, to continue the run the committed model came from.
+WOMD       ?= ../shared/data/womd
+TRAIN_DIR  ?= $(HOME)/.cache/scenestreamer/train-default
+TRAIN_FLAGS = --config small --data $(WOMD)/json/train --synthetic $(TRAIN_DIR)/sumo,data --val $(WOMD)/json/val \
+  --real-fraction 0.7 --steps 6000 --stage1-steps 1500 --batch 4 --lr 5e-4 --warmup 150 --max-agents 32 \
+  --max-map-segments 1500 --threads 1 --val-every 200 --val-scenarios 16 --checkpoint-every 50 \
+  --eval-every 500 --eval-tool $(BUILD)/tools/scenestreamer --eval-scenarios 8
+
+train-default: build
+	test -f $(TRAIN_DIR)/sumo/MANIFEST || $(BUILD)/tools/scenestreamer dataset sumo --out $(TRAIN_DIR)/sumo \
+	  --scenarios 300 --seed 7 --workers 1
+	mkdir -p $(TRAIN_DIR)/run
+	if [ "$(TRAIN_FROM_COMMITTED)" = 1 ] && [ ! -f $(TRAIN_DIR)/run/checkpoint.pt ]; then \
+	  cp models/train-checkpoint.pt $(TRAIN_DIR)/run/checkpoint.pt; fi
+	OMP_WAIT_POLICY=PASSIVE nice -n 10 $(BUILD)/training/scenestreamer-train $(TRAIN_FLAGS) --out $(TRAIN_DIR)/run --resume
+	$(BUILD)/training/scenestreamer-train export --checkpoint $(TRAIN_DIR)/run/checkpoint.pt --out models/default.safetensors
+	$(BUILD)/training/scenestreamer-train plot --run $(TRAIN_DIR)/run --out models/loss_curves.svg
 
 clean:
 	rm -rf $(BUILD) $(FUZZ_BUILD)

@@ -131,40 +131,59 @@ torch::Tensor TorchModel::embed(const Batch& b) const {
   return x;
 }
 
-Forward TorchModel::forward(const Batch& b) const {
+torch::Tensor TorchModel::decoder_layer(int l, const torch::Tensor& x, const Batch& b, const LayerInputs& in,
+                                        const torch::Tensor& past_k, const torch::Tensor& past_v, torch::Tensor* k_out,
+                                        torch::Tensor* v_out) const {
   const int d = config_.d_model, heads = config_.heads, dh = d / heads;
-  Forward f;
-  f.map_tokens = encode_map(b);
-  torch::Tensor x = embed(b);
-  const torch::Tensor self_rel = relation(b.self_features, "decoder.self_relation");
-  const torch::Tensor cross_rel = relation(b.cross_features, "decoder.cross_relation");
+  const std::string L = absl::StrCat("decoder.layers.", l);
+  const std::string C = L + ".cross_attn";
+  const torch::Tensor& mk = in.cross_k[l];
+  const torch::Tensor& mv = in.cross_v[l];
+  const torch::Tensor xc = norm(x, L + ".cross_norm");
+  torch::Tensor cross = attention(xc, C, mk, mv, in.cross_rel, b.cross_keys);  // rows without keys: replaced below
   // A query without a position reads its whole map with one relation row (features all zero): the row's score term
   // is the same for every key (the softmax cancels it), and its value term is added whole.
-  const torch::Tensor rest = relation(torch::zeros({1, kRelationFeatures}), "decoder.cross_relation");
-  for (int l = 0; l < config_.decoder_layers; ++l) {
-    const std::string L = absl::StrCat("decoder.layers.", l);
-    const std::string C = L + ".cross_attn";
-    const torch::Tensor xc = norm(x, L + ".cross_norm");
-    const torch::Tensor mk = linear(f.map_tokens, C + ".key"), mv = linear(f.map_tokens, C + ".value");
-    torch::Tensor cross = attention(xc, C, mk, mv, cross_rel, b.cross_keys);  // rows without keys: replaced below
-    for (int e = 0; e < b.examples; ++e) {
-      const torch::Tensor& rows = b.unposed[e];
-      if (rows.numel() == 0) continue;
-      const int64_t m0 = b.map_begin[e], m1 = b.map_begin[e + 1];
-      const torch::Tensor q = linear(xc.index_select(0, rows), C + ".query").view({-1, heads, dh}).transpose(0, 1);
-      const torch::Tensor k = mk.slice(0, m0, m1).view({-1, heads, dh}).transpose(0, 1);
-      const torch::Tensor v = mv.slice(0, m0, m1).view({-1, heads, dh}).transpose(0, 1);
-      const torch::Tensor a = torch::softmax(torch::matmul(q, k.transpose(1, 2)) / std::sqrt(static_cast<float>(dh)), -1);
-      torch::Tensor o = torch::matmul(a, v).transpose(0, 1).reshape({-1, d});
-      o = o + linear(rest, C + ".rel_value");
-      cross = cross.index_copy(0, rows, linear(o, C + ".output"));
-    }
-    x = x + cross;
-    const torch::Tensor xs = norm(x, L + ".self_norm");
-    x = x + attention(xs, L + ".self_attn", linear(xs, L + ".self_attn.key"), linear(xs, L + ".self_attn.value"),
-                      self_rel, b.self_keys);
-    x = x + linear(torch::relu(linear(norm(x, L + ".ffn_norm"), L + ".ffn.fc1")), L + ".ffn.fc2");
+  for (int e = 0; e < b.examples; ++e) {
+    const torch::Tensor& rows = b.unposed[e];
+    if (rows.numel() == 0) continue;
+    const int64_t m0 = in.map_begin[e], m1 = in.map_begin[e + 1];
+    const torch::Tensor q = linear(xc.index_select(0, rows), C + ".query").view({-1, heads, dh}).transpose(0, 1);
+    const torch::Tensor k = mk.slice(0, m0, m1).view({-1, heads, dh}).transpose(0, 1);
+    const torch::Tensor v = mv.slice(0, m0, m1).view({-1, heads, dh}).transpose(0, 1);
+    const torch::Tensor a = torch::softmax(torch::matmul(q, k.transpose(1, 2)) / std::sqrt(static_cast<float>(dh)), -1);
+    const torch::Tensor o = torch::matmul(a, v).transpose(0, 1).reshape({-1, d}) + linear(in.rest, C + ".rel_value");
+    cross = cross.index_copy(0, rows, linear(o, C + ".output"));
   }
+  torch::Tensor y = x + cross;
+  const torch::Tensor xs = norm(y, L + ".self_norm");
+  torch::Tensor k = linear(xs, L + ".self_attn.key"), v = linear(xs, L + ".self_attn.value");
+  if (past_k.defined()) k = torch::cat({past_k, k}), v = torch::cat({past_v, v});
+  y = y + attention(xs, L + ".self_attn", k, v, in.self_rel, b.self_keys);
+  if (k_out) *k_out = k, *v_out = v;
+  return y + linear(torch::relu(linear(norm(y, L + ".ffn_norm"), L + ".ffn.fc1")), L + ".ffn.fc2");
+}
+
+TorchModel::LayerInputs TorchModel::layer_inputs(const Batch& b, const torch::Tensor& map_tokens,
+                                                 std::vector<int64_t> map_begin) const {
+  LayerInputs in;
+  for (int l = 0; l < config_.decoder_layers; ++l) {
+    const std::string C = absl::StrCat("decoder.layers.", l, ".cross_attn");
+    in.cross_k.push_back(linear(map_tokens, C + ".key"));
+    in.cross_v.push_back(linear(map_tokens, C + ".value"));
+  }
+  in.self_rel = relation(b.self_features, "decoder.self_relation");
+  in.cross_rel = relation(b.cross_features, "decoder.cross_relation");
+  in.rest = relation(torch::zeros({1, kRelationFeatures}), "decoder.cross_relation");
+  in.map_begin = std::move(map_begin);
+  return in;
+}
+
+Forward TorchModel::forward(const Batch& b) const {
+  Forward f;
+  f.map_tokens = encode_map(b);
+  const LayerInputs in = layer_inputs(b, f.map_tokens, b.map_begin);
+  torch::Tensor x = embed(b);
+  for (int l = 0; l < config_.decoder_layers; ++l) x = decoder_layer(l, x, b, in, {}, {}, nullptr, nullptr);
   f.hidden = norm(x, "decoder.final_norm");
   return f;
 }

@@ -43,6 +43,7 @@ class TorchModel {
   HeadLogits heads(const Batch& b, const Forward& f) const;
 
  private:
+  friend class TorchDecoder;  // steps the same layers over its own cache (incremental.h)
   const torch::Tensor& p(const std::string& name) const;
   torch::Tensor linear(const torch::Tensor& x, const std::string& name, bool bias = true) const;
   torch::Tensor norm(const torch::Tensor& x, const std::string& name) const;
@@ -53,6 +54,19 @@ class TorchModel {
                           const torch::Tensor& v, const torch::Tensor& rel, const SparseKeys& keys) const;
   torch::Tensor encode_map(const Batch& b) const;
   torch::Tensor embed(const Batch& b) const;
+  // What every decoder layer reads besides the tokens: the map's keys and values per layer, the relation embeddings
+  // of the batch's key lists, the relation row of a query without a position, and where each example's map starts.
+  struct LayerInputs {
+    std::vector<torch::Tensor> cross_k, cross_v;
+    torch::Tensor self_rel, cross_rel, rest;
+    std::vector<int64_t> map_begin;
+  };
+  LayerInputs layer_inputs(const Batch& b, const torch::Tensor& map_tokens, std::vector<int64_t> map_begin) const;
+  // One decoder layer over the batch's tokens. Self-attention keys index `past_k` rows followed by the batch's own
+  // (past_k undefined in training); the layer's keys and values of past and new tokens go to k_out and v_out.
+  torch::Tensor decoder_layer(int l, const torch::Tensor& x, const Batch& b, const LayerInputs& in,
+                              const torch::Tensor& past_k, const torch::Tensor& past_v, torch::Tensor* k_out,
+                              torch::Tensor* v_out) const;
   torch::Tensor relative_state_logits(const torch::Tensor& z, const torch::Tensor& bins) const;
 
   ModelConfig config_;

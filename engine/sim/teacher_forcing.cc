@@ -39,6 +39,24 @@ void close_query(KeyLists& lists) { lists.offsets.push_back(static_cast<int>(lis
 
 }  // namespace
 
+void fill_map_inputs(TeacherForcedExample& ex, const ModelConfig& config) {
+  const SegmentIndex index(ex.segments);
+  const NeighbourLimit limit{config.knn_k, config.knn_radius, config.knn_always};
+  ex.point_features.clear();
+  ex.point_segment.clear();
+  ex.map_keys = {};
+  for (size_t i = 0; i < ex.segments.size(); ++i) {
+    const SegmentFeatures f = segment_point_features(ex.segments[i]);
+    const int n = std::min(ex.segments[i].num_vectors(), kMaxVectorsPerSegment);
+    ex.point_features.insert(ex.point_features.end(), f.begin(), f.begin() + n * kPointFeatureDim);
+    ex.point_segment.insert(ex.point_segment.end(), n, static_cast<int>(i));
+    const Pose& p = ex.segments[i].pose;
+    add_keys(ex.map_keys, map_keys_near(ex.segments, index, {p.x, p.y}, limit), Anchor(true, p, 0),
+             [&](int j) { return Anchor(true, ex.segments[j].pose, 0); });
+    close_query(ex.map_keys);
+  }
+}
+
 absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scenario, const ModelConfig& config,
                                                             const TeacherForcingOptions& options) {
   if (options.phase < 0 || options.phase >= kFramesPerStep)
@@ -64,18 +82,7 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
     return absl::FailedPreconditionError(absl::StrCat("teacher forcing: scenario ", scenario.id, " has no map segments"));
   const SegmentIndex index(ex.segments);
   const NeighbourLimit limit{config.knn_k, config.knn_radius, config.knn_always};
-
-  // The encoder's input and keys, as Model::encode_map reads them.
-  for (size_t i = 0; i < ex.segments.size(); ++i) {
-    const SegmentFeatures f = segment_point_features(ex.segments[i]);
-    const int n = std::min(ex.segments[i].num_vectors(), kMaxVectorsPerSegment);
-    ex.point_features.insert(ex.point_features.end(), f.begin(), f.begin() + n * kPointFeatureDim);
-    ex.point_segment.insert(ex.point_segment.end(), n, static_cast<int>(i));
-    const Pose& p = ex.segments[i].pose;
-    add_keys(ex.map_keys, map_keys_near(ex.segments, index, {p.x, p.y}, limit), Anchor(true, p, 0),
-             [&](int j) { return Anchor(true, ex.segments[j].pose, 0); });
-    close_query(ex.map_keys);
-  }
+  fill_map_inputs(ex, config);
 
   // The region's centre at each step: the SDC while the log has it, else the scenario's focus.
   const Vec2 focus = scenario_focus(scenario);

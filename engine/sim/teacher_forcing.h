@@ -58,6 +58,9 @@ struct TeacherForcedExample {
   int agents = 0;                     // agents in the sequence
 };
 
+// The encoder's inputs of `ex.segments` (point_features, point_segment, map_keys), as Model::encode_map reads them.
+void fill_map_inputs(TeacherForcedExample& ex, const ModelConfig& config);
+
 // INVALID_ARGUMENT for a phase outside 0..4 or a scenario with fewer than two steps at that phase;
 // FAILED_PRECONDITION for a map without segments.
 absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scenario, const ModelConfig& config,

@@ -6,6 +6,7 @@
 #include "engine/scenario/read.h"
 #include "engine/sim/teacher_forcing.h"
 #include "training/batch.h"
+#include "training/incremental.h"
 #include "training/model.h"
 
 namespace ss::train {
@@ -106,6 +107,36 @@ TEST(Parity, TorchAndEngineAgreeOnEveryHead) {
     }
   }
   EXPECT_LT(state_diff, tol) << "relative-state head";
+}
+
+}  // namespace
+}  // namespace ss::train
+
+namespace ss::train {
+namespace {
+
+// The torch model stepped over its own cache (the benchmark's comparison) gives the full forward's outputs.
+TEST(Parity, TorchIncrementalMatchesTorchFull) {
+  const ModelConfig config = tiny_config();
+  const TorchModel model = random_model(config);
+  TeacherForcingOptions opts;
+  opts.max_agents = 10;
+  auto ex = teacher_forced_example(real_scenario(), config, opts);
+  ASSERT_TRUE(ex.ok()) << ex.status();
+  const Batch b = make_batch({&*ex});
+  torch::NoGradGuard no_grad;
+  const torch::Tensor full = model.forward(b).hidden;
+  TorchDecoder decoder(model, ex->segments);
+  std::vector<torch::Tensor> parts;
+  for (size_t i = 0; i < ex->tokens.size();) {  // one call per step, as a session decodes (window eviction included)
+    size_t j = i;
+    while (j < ex->tokens.size() && ex->tokens[j].step == ex->tokens[i].step) ++j;
+    std::vector<DecoderToken> step(ex->tokens.begin() + i, ex->tokens.begin() + j);
+    parts.push_back(decoder.decode(step));
+    i = j;
+  }
+  EXPECT_LT((torch::cat(parts) - full).abs().max().item<float>(), 1e-4);
+  EXPECT_LT(decoder.cached_tokens(), static_cast<int>(ex->tokens.size())) << "old steps were evicted";
 }
 
 }  // namespace
