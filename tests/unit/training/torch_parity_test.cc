@@ -42,6 +42,12 @@ Scenario real_scenario() {
   return std::move((*s)[0]);
 }
 
+// Prints each comparison's largest difference (the README quotes them).
+float report(const char* what, float d) {
+  std::printf("  max |engine - torch| %-28s %.2e\n", what, d);
+  return d;
+}
+
 float max_diff(const Mat& engine, const torch::Tensor& t) {
   const torch::Tensor c = t.detach().contiguous();
   EXPECT_EQ(engine.rows(), c.size(0));
@@ -81,18 +87,19 @@ TEST(Parity, TorchAndEngineAgreeOnEveryHead) {
   auto map = (*engine_model)->encode_map(ex->segments);
   ASSERT_TRUE(map.ok()) << map.status();
   const float tol = 1e-4f;
-  EXPECT_LT(max_diff((*map)->tokens, f.map_tokens), tol) << "map tokens";
+  EXPECT_LT(report("map tokens", max_diff((*map)->tokens, f.map_tokens)), tol);
   std::vector<DecoderToken> tokens = ex->tokens;
   const Mat h = (*engine_model)->decode_full(**map, tokens);
-  EXPECT_LT(max_diff(h, f.hidden), tol) << "decoder outputs";
+  EXPECT_LT(report("decoder outputs", max_diff(h, f.hidden)), tol);
 
   const Model& m = **engine_model;
-  EXPECT_LT(max_diff(m.light_logits(rows_of(h, b.light_rows)), heads.light), tol) << "light head";
-  EXPECT_LT(max_diff(m.motion_logits(rows_of(h, b.motion_rows)), heads.motion), tol) << "motion head";
-  EXPECT_LT(max_diff(m.agent_type_logits(rows_of(h, b.type_rows)), heads.type), tol) << "agent type head";
-  EXPECT_LT(max_diff(m.end_of_agents_logits(rows_of(h, b.end_rows)), heads.end), tol) << "end-of-agents head";
-  EXPECT_LT(max_diff(m.map_segment_logits(rows_of(h, b.segment_rows[0]), **map), heads.segment[0]), tol)
-      << "map-segment pointer head";
+  EXPECT_LT(report("light head", max_diff(m.light_logits(rows_of(h, b.light_rows)), heads.light)), tol);
+  EXPECT_LT(report("motion head", max_diff(m.motion_logits(rows_of(h, b.motion_rows)), heads.motion)), tol);
+  EXPECT_LT(report("agent type head", max_diff(m.agent_type_logits(rows_of(h, b.type_rows)), heads.type)), tol);
+  EXPECT_LT(report("end-of-agents head", max_diff(m.end_of_agents_logits(rows_of(h, b.end_rows)), heads.end)), tol);
+  EXPECT_LT(report("map-segment pointer head",
+                   max_diff(m.map_segment_logits(rows_of(h, b.segment_rows[0]), **map), heads.segment[0])),
+            tol);
   // The relative-state head, field by field with the target's earlier fields as the prefix (as a session samples).
   const Mat z = rows_of(h, b.state_rows);
   ASSERT_GT(z.rows(), 0);
@@ -106,7 +113,7 @@ TEST(Parity, TorchAndEngineAgreeOnEveryHead) {
       prefix.push_back(static_cast<int>(b.state_target[r][field].item<int64_t>()));
     }
   }
-  EXPECT_LT(state_diff, tol) << "relative-state head";
+  EXPECT_LT(report("relative-state head", state_diff), tol);
 }
 
 }  // namespace
