@@ -1,21 +1,22 @@
 // GPUDrive / Nocturne JSON -> Scenario.
 //
-// Decisions, checked against the 59 real files in ../shared/data/womd/json (see that README):
+// Decisions, checked against the 227 real files in ../shared/data/womd/json (see that README):
 // - Heading units: objects WITH `id` (newer GPUDrive files) are in radians; objects WITHOUT `id` (older Nocturne
 //   files) are in degrees and unwrapped (450, -270 occur). A file mixing both is rejected: its unit is unknowable.
 //   Every heading is wrapped into [-pi, pi).
 // - Invalid steps hold placeholders (-10000 or 0.0001) in every field; they become a default ObjectState with
 //   valid=false. Their fields must still have the right JSON types (a corrupt file is not hidden behind valid=false).
 //   A VALID step holding the placeholder -10000 is an error naming the field.
-// - Missing `height` (all older files): a per-type default, the median height of the 1,261 objects that do carry one
-//   in the 59 files (vehicle 1.66, pedestrian 1.74, cyclist 1.77 m), rounded: see default_height().
+// - Missing `height` (all older files): a per-type default, the median height of the objects that do carry one
+//   (1,261 in the first 59 files: vehicle 1.66, pedestrian 1.74, cyclist 1.77 m; 11,569 in the 227: 1.67, 1.73,
+//   1.80 m), rounded: see default_height().
 // - Track id = `id` when present, else the object's index. Map feature id = `id` when present, else the road's index.
 //   Duplicate ids are errors.
 // - Map feature subtype comes from `map_element_id` (GPUDrive MapElementIds); without one (older files) it is 0.
 //   A map_element_id that contradicts `type` is an error; -1 ("unknown") is accepted with any type, subtype 0.
 // - Polygons (crosswalk, speed bump, driveway): WOMD does not repeat the first point and none of the real files do
-//   either (all 1,133 polygons checked); if a file does, the repeated last point is dropped.
-// - Stop signs must have exactly one geometry point (all 237 real ones do). JSON carries no controlled lanes.
+//   either (all 9,149 polygons checked); if a file does, the repeated last point is dropped.
+// - Stop signs must have exactly one geometry point (all 1,073 real ones do). JSON carries no controlled lanes.
 //   Road geometry has no placeholder convention and is taken as is (z optional, 0 when absent); empty geometry is
 //   an error (no real road has one).
 // - tl_states (optional; absent = no lights): {lane id: {state[], x[], y[], z[] (optional), time_index[],
