@@ -42,6 +42,9 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
     r.offroad_rate = of("offroad_rate", [](const RealismScores& x) { return x.offroad_rate; });
     r.ade = of("ade", [](const RealismScores& x) { return x.ade; });
     r.min_ade = of("min_ade", [](const RealismScores& x) { return x.min_ade; });
+    r.objects = 0;
+    for (const ScenarioEvaluation& s : scenarios)
+      if (const RealismScores* x = get(s)) r.objects += x->objects;
     return r;
   };
   d.realism = realism("", [](const ScenarioEvaluation& s) { return &s.realism; });

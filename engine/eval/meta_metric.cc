@@ -72,6 +72,7 @@ RealismScores score_realism(const SceneFeatures& log, std::span<const SceneFeatu
     for (size_t i = 0; i < objects; ++i)
       scored[i] = std::any_of(masks[kCollision][i].begin(), masks[kCollision][i].end(), [](uint8_t m) { return m != 0; });
   const size_t scored_objects = static_cast<size_t>(std::count(scored.begin(), scored.end(), 1));
+  r.objects = static_cast<int>(scored_objects);
 
   // Indications aggregate over time: did the object ever collide (go off-road, run a red light) in the masked frames.
   auto indication = [&](const SceneFeatures& s, int f, size_t i) {

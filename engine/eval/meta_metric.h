@@ -20,6 +20,7 @@ struct RealismScores {
   double kinematic = 0, interactive = 0, map = 0;  // weighted means of each bucket's likelihoods
   double collision_rate = 0, offroad_rate = 0;     // share of (rollout, object) with any collision / offroad
   double ade = 0, min_ade = 0;                     // mean over rollouts and objects; min over rollouts of the mean
+  int objects = 0;  // objects scored: every evaluated one over the whole future; in a window, those the log has there
 };
 
 enum class RealismBucket { kinematic, interactive, map };

@@ -53,6 +53,7 @@ json windows_json(std::span<const RealismScores> windows, std::span<const int> s
     o["from_s"] = static_cast<int>(w) * kRealismWindowFrames / 10;
     o["to_s"] = w + 1 < kNumRealismWindows ? json(static_cast<int>(w + 1) * kRealismWindowFrames / 10) : json(nullptr);
     if (!scenarios.empty()) o["scenarios"] = scenarios[w];
+    o["objects"] = windows[w].objects;
     put_realism(o, windows[w]);
     out.push_back(o);
   }
@@ -160,14 +161,15 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
                           fmt(m->fde_avg, 3), fmt(m->fde_min, 3), fmt(m->add, 3), fmt(m->fdd, 3));
   // Per window, when some scenario is longer than one window (a 91-frame scenario's only window is the whole).
   if (d.windows.size() > 1) {
-    absl::StrAppendFormat(&t, "\n  %-10s %9s %9s %9s %9s %9s %9s %9s %9s\n", "window", "scenarios", "realism",
-                          "kinematic", "interact.", "map", "collision", "offroad", "minADE");
+    absl::StrAppendFormat(&t, "\n  %-10s %9s %9s %9s %9s %9s %9s %9s %9s %9s\n", "window", "scenarios", "objects",
+                          "realism", "kinematic", "interact.", "map", "collision", "offroad", "minADE");
     for (size_t w = 0; w < d.windows.size(); ++w) {
       const RealismScores& x = d.windows[w].realism;
-      absl::StrAppendFormat(&t, "  %-10s %9d %9s %9s %9s %9s %9s %9s %9s\n", realism_window_name(static_cast<int>(w)),
-                            d.windows[w].scenarios, fmt(x.meta), fmt(x.kinematic), fmt(x.interactive), fmt(x.map),
-                            fmt(x.collision_rate, 3), fmt(x.offroad_rate, 3), fmt(x.min_ade, 3));
+      absl::StrAppendFormat(&t, "  %-10s %9d %9d %9s %9s %9s %9s %9s %9s %9s\n", realism_window_name(static_cast<int>(w)),
+                            d.windows[w].scenarios, x.objects, fmt(x.meta), fmt(x.kinematic), fmt(x.interactive),
+                            fmt(x.map), fmt(x.collision_rate, 3), fmt(x.offroad_rate, 3), fmt(x.min_ade, 3));
     }
+    absl::StrAppendFormat(&t, "  (objects: those the log has in the window; the window's minADE counts its own frames)\n");
   }
   if (d.has_mmd) {
     absl::StrAppendFormat(&t, "\n  %-16s %9s %9s %9s %9s\n", "initial MMD", "position", "heading", "size", "velocity");

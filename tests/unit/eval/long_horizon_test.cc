@@ -113,10 +113,12 @@ TEST(LongHorizon, WindowLeavesOutObjectsTheLogLacksThere) {
   const RealismScores second = score_realism(log, sims, types, {3, 6});
   EXPECT_NEAR(second.likelihood[kCollision], 0.001 / 1.002, 1e-12);  // the first object only
   EXPECT_DOUBLE_EQ(second.collision_rate, 1.0);
+  EXPECT_EQ(second.objects, 1);
   // Over the whole future both objects count, as in WOSAC.
   const RealismScores whole = score_realism(log, sims, types);
   EXPECT_NEAR(whole.likelihood[kCollision], std::sqrt(0.001 / 1.002 * 1.001 / 1.002), 1e-12);
   EXPECT_DOUBLE_EQ(whole.collision_rate, 0.5);
+  EXPECT_EQ(whole.objects, 2);
 }
 
 TEST(LongHorizon, RealTwentySecondScenarioRolledOutToItsEnd) {
