@@ -1,5 +1,6 @@
 // scenestreamer eval --data FILE_OR_DIR... --model W --mode motion|full --rollouts K --seed S [--baseline cv|log]
-//                   --json OUT [--plots DIR] [--threads N]
+//                   [--sdc model|log] --json OUT [--plots DIR] [--threads N]
+// scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT]
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -18,6 +19,7 @@
 #include "engine/scenario/read.h"
 #include "tools/cli_args.h"
 #include "tools/commands.h"
+#include "tools/eval/eval_compare.h"
 #include "tools/eval/eval_plots.h"
 #include "tools/eval/eval_report.h"
 
@@ -27,17 +29,26 @@ namespace {
 constexpr const char* kUsage =
     "usage: scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --json OUT.json\n"
     "                          (--model WEIGHTS [--mode motion|full] | --baseline cv|log)\n"
-    "                          [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
-    "  Rolls every scenario out K times (default 4) from its current frame to its last and scores the rollouts\n"
-    "  against the log: WOSAC 2025 realism (meta-metric, its ten likelihoods and three buckets, collision and\n"
-    "  offroad rates, minADE), the paper's motion metrics (ADE/FDE average and minimum over rollouts, ADD/FDD\n"
-    "  diversity) and, in full mode, the initial-state MMD. Scenarios run in parallel; results do not depend on the\n"
-    "  thread count (each rollout's seed comes from S, the scenario id and the rollout index).\n"
+    "                          [--sdc model|log] [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
+    "       scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT.json]\n"
+    "  Rolls every scenario out K times (default 4) from its current frame to its last (any length: a 20 s scenario\n"
+    "  is rolled out for 20 s) and scores the rollouts against the log: WOSAC 2025 realism (meta-metric, its ten\n"
+    "  likelihoods and three buckets, collision and offroad rates, minADE), over the whole future and per window\n"
+    "  (0-8 s, 8-16 s, 16 s to the end), the paper's motion metrics (ADE/FDE average and minimum over rollouts,\n"
+    "  ADD/FDD diversity) and, in full mode, the initial-state MMD. Scenarios run in parallel; results do not depend\n"
+    "  on the thread count (each rollout's seed comes from S, the scenario id and the rollout index).\n"
     "  --data        WOMD TFRecords or GPUDrive/Nocturne JSON files, or directories of them\n"
     "  --baseline    cv: constant velocity; log: replay of the logged future (the oracle); no model needed\n"
-    "  --json        the results as one JSON object ('-' for stdout; the table then goes to stderr)\n"
+    "  --sdc         model (default): the policy drives the SDC like every other agent and the SDC is evaluated\n"
+    "                (WOSAC's rule); log: the SDC follows its log, as an RL client's ego would, and is left out of\n"
+    "                the evaluated objects\n"
+    "  --json        the results as one JSON object, with per-scenario results ('-' for stdout; the table then goes\n"
+    "                to stderr)\n"
     "  --plots DIR   SVG histograms of each feature, log vs rollouts\n"
-    "  --threads N   worker threads (default: the hardware's)\n";
+    "  --threads N   worker threads (default: the hardware's)\n"
+    "  --compare     two --json results of the same scenarios and --sdc rule: each metric's difference B - A with a\n"
+    "                95 % paired bootstrap interval over scenarios (--bootstrap N resamples, default 10000; --seed S,\n"
+    "                default 1); --json OUT writes the comparison too\n";
 
 int fail(const std::string& msg) {
   std::fprintf(stderr, "eval: %s\n", msg.c_str());
@@ -52,11 +63,39 @@ bool parse_number(const Args& args, const char* flag, T* out) {
   return false;
 }
 
+int compare_main(const Args& args) {
+  for (const char* flag : {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads"})
+    if (args.has(flag)) return fail(absl::StrCat("--compare takes two result files: --", flag, " does not apply"));
+  if (args.positional.size() != 1)
+    return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + args.positional.size()));
+  CompareRequest request{args.get("compare"), args.positional[0], {}};
+  if (!parse_number(args, "bootstrap", &request.bootstrap.resamples) ||
+      !parse_number(args, "seed", &request.bootstrap.seed))
+    return 2;
+  if (request.bootstrap.resamples < 100 || request.bootstrap.resamples > 1000000)
+    return fail("--bootstrap must be in 100..1000000");
+  auto report = compare_eval_files(request);
+  if (!report.ok()) return fail(std::string(report.status().message()));
+  std::fputs(report->table.c_str(), stdout);
+  if (args.has("json")) {
+    const std::string out = args.get("json");
+    std::ofstream f(out, std::ios::binary | std::ios::trunc);
+    f << report->json.dump(2) << "\n";
+    f.close();
+    if (!f) return fail("cannot write --json " + out);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int eval_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1, {"data", "model", "mode", "rollouts", "seed", "baseline", "json", "plots", "threads"},
+  auto args = parse_args(argc, argv, 1,
+                         {"data", "model", "mode", "rollouts", "seed", "baseline", "sdc", "json", "plots", "threads",
+                          "compare", "bootstrap"},
                          {"help"});
+  if (args.ok() && !args->has("help") && args->has("compare")) return compare_main(*args);
+  if (args.ok() && args->has("bootstrap") && !args->has("help")) return fail("--bootstrap goes with --compare");
   if (!args.ok() || args->has("help") || !args->has("data") || !args->has("json")) {
     if (!args.ok()) std::fprintf(stderr, "eval: %s\n", std::string(args.status().message()).c_str());
     else if (!args->has("help")) std::fprintf(stderr, "eval: --%s is required\n", args->has("data") ? "json" : "data");
@@ -78,6 +117,10 @@ int eval_main(int argc, char** argv) {
   } else if (!args->has("model")) {
     return fail("--model WEIGHTS is required (or --baseline cv|log)");
   }
+  const std::string sdc = args->get("sdc", "model");
+  if (sdc == "model") options.sdc = SdcRule::model;
+  else if (sdc == "log") options.sdc = SdcRule::log;
+  else return fail("--sdc '" + sdc + "' is not model or log");
   const std::string mode = args->get("mode", "motion");
   if (mode == "motion") options.session.mode = SessionMode::motion;
   else if (mode == "full") options.session.mode = SessionMode::full;
@@ -131,6 +174,7 @@ int eval_main(int argc, char** argv) {
 
   const DatasetEvaluation d = aggregate(evaluations);
   run.policy = options.policy;
+  run.sdc = options.sdc;
   run.mode = options.session.mode;
   run.rollouts = options.rollouts;
   run.seed = options.session.seed;

@@ -1,7 +1,8 @@
-// scenestreamer simulate --scenario FILE --model W --mode motion|full|densify --steps N --seed S --out FILE
+// scenestreamer simulate --scenario FILE --model W --mode motion|full|densify --sdc model|log --steps N --seed S --out FILE
 #include <cstdio>
 
 #include "absl/strings/numbers.h"
+#include "engine/eval/model_rollout.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
@@ -16,11 +17,14 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: scenestreamer simulate --scenario FILE --model WEIGHTS --out OUT.tfrecord\n"
-    "                              [--mode motion|full|densify] [--steps N] [--seed S] [--index I]\n"
+    "                              [--mode motion|full|densify] [--sdc model|log] [--steps N] [--seed S] [--index I]\n"
     "                              [--top-p P] [--temperature T] [--max-agents N] [--densify-target N]\n"
-    "  Rolls the scenario out from its current step for N model steps (0.5 s each; default 16, to the end of a WOMD\n"
-    "  scenario) and writes it as a 10 Hz WOMD Scenario TFRecord. The SDC replays its logged poses while the log lasts\n"
-    "  (then keeps its last control); --free-sdc lets the model drive it too.\n";
+    "  Rolls the scenario out from its current step for N model steps (0.5 s each; default: to the scenario's last\n"
+    "  frame, 16 steps for a 91-frame WOMD scenario, 38 for a 20 s one; more steps go on past the log) and writes it\n"
+    "  as a 10 Hz WOMD Scenario TFRecord.\n"
+    "  --sdc model (default): the model drives the SDC like every other agent; no logged pose after the current\n"
+    "        frame reaches the session. log: the SDC replays its logged poses while the log lasts (then keeps its last\n"
+    "        control), as an RL client's ego would.\n";
 
 int fail(const std::string& msg) {
   std::fprintf(stderr, "simulate: %s\n", msg.c_str());
@@ -31,9 +35,9 @@ int fail(const std::string& msg) {
 
 int simulate_main(int argc, char** argv) {
   auto args = parse_args(argc, argv, 1,
-                         {"scenario", "model", "mode", "steps", "seed", "out", "index", "top-p", "temperature",
+                         {"scenario", "model", "mode", "sdc", "steps", "seed", "out", "index", "top-p", "temperature",
                           "max-agents", "densify-target"},
-                         {"help", "free-sdc"});
+                         {"help"});
   if (!args.ok() || args->has("help") || !args->positional.empty() || !args->has("scenario") ||
       !args->has("model") || !args->has("out")) {
     if (!args.ok()) std::fprintf(stderr, "simulate: %s\n", std::string(args.status().message()).c_str());
@@ -47,7 +51,11 @@ int simulate_main(int argc, char** argv) {
   else if (mode == "full") o.mode = SessionMode::full;
   else if (mode == "densify") o.mode = SessionMode::densify;
   else return fail("--mode '" + mode + "' is not motion, full or densify");
-  int steps = 16, index = 0;
+  const std::string sdc = args->get("sdc", "model");
+  SdcRule sdc_rule = SdcRule::model;
+  if (sdc == "log") sdc_rule = SdcRule::log;
+  else if (sdc != "model") return fail("--sdc '" + sdc + "' is not model or log");
+  int steps = -1, index = 0;
   auto number = [&](const char* flag, auto* out) {
     if (!args->has(flag)) return true;
     using T = std::remove_pointer_t<decltype(out)>;
@@ -61,7 +69,7 @@ int simulate_main(int argc, char** argv) {
       !number("temperature", &o.temperature) || !number("max-agents", &o.max_agents) ||
       !number("densify-target", &o.densify_target))
     return 2;
-  if (steps < 0 || steps > 100000) return fail("--steps must be in 0..100000");
+  if (args->has("steps") && (steps < 0 || steps > 100000)) return fail("--steps must be in 0..100000");
 
   enable_flush_to_zero();
   auto weights = load_weights(args->get("model"));
@@ -74,35 +82,20 @@ int simulate_main(int argc, char** argv) {
     return fail("--index " + std::to_string(index) + " is outside the file's " + std::to_string(scenarios->size()) +
                 " scenarios");
   auto scenario = std::make_shared<const Scenario>((*scenarios)[index]);
-  o.control_sdc = !args->has("free-sdc");
   MapCache maps(*model);
   auto map = maps.get(*scenario);
   if (!map.ok()) return fail(std::string(map.status().message()));
-  auto session = Session::create(*model, scenario, *map, o);
-  if (!session.ok()) return fail(std::string(session.status().message()));
-
-  std::vector<StepResult> results = {(*session)->current()};
-  const Track* sdc = scenario->sdc_track_index >= 0 ? &scenario->tracks[scenario->sdc_track_index] : nullptr;
-  for (int i = 0; i < steps; ++i) {
-    std::vector<ControlInput> controls;
-    const int frame = ((*session)->step_index() + 1) * kFramesPerStep;
-    if (sdc && o.control_sdc && frame < static_cast<int>(sdc->states.size()) && sdc->states[frame].valid) {
-      const bool controlled = std::any_of(results.back().agents.begin(), results.back().agents.end(),
-                                          [&](const AgentView& a) { return a.id == sdc->id && a.controlled; });
-      if (controlled) {
-        const ObjectState& st = sdc->states[frame];
-        controls.push_back({sdc->id, st.x, st.y, st.heading, std::nullopt});
-      }
-    }
-    auto r = (*session)->step(controls);
-    if (!r.ok()) return fail("step " + std::to_string(i + 1) + ": " + std::string(r.status().message()));
-    results.push_back(std::move(*r));
-  }
-  const Scenario rollout = rollout_to_scenario(*scenario, results);
+  auto results = run_model_rollout(*model, scenario, *map, o, sdc_rule, steps);
+  if (!results.ok()) return fail(std::string(results.status().message()));
+  Scenario rollout = rollout_to_scenario(*scenario, *results);
+  // The export names the first controlled agent as the SDC; when the model drives it, name the log's SDC instead.
+  if (rollout.sdc_track_index < 0 && scenario->sdc_track_index >= 0)
+    for (size_t i = 0; i < rollout.tracks.size(); ++i)
+      if (rollout.tracks[i].id == scenario->tracks[scenario->sdc_track_index].id) rollout.sdc_track_index = static_cast<int>(i);
   if (auto st = write_scenarios_tfrecord(args->get("out"), {rollout}); !st.ok()) return fail(std::string(st.message()));
-  std::printf("simulated %s (%s mode, seed %llu): %d steps, %zu agents at the end, %zu tracks in all -> %s\n",
-              scenario->id.c_str(), mode.c_str(), static_cast<unsigned long long>(o.seed), steps,
-              results.back().agents.size(), rollout.tracks.size(), args->get("out").c_str());
+  std::printf("simulated %s (%s mode, --sdc %s, seed %llu): %zu steps, %zu agents at the end, %zu tracks in all -> %s\n",
+              scenario->id.c_str(), mode.c_str(), sdc.c_str(), static_cast<unsigned long long>(o.seed),
+              results->size() - 1, results->back().agents.size(), rollout.tracks.size(), args->get("out").c_str());
   return 0;
 }
 

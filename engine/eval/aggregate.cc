@@ -1,5 +1,6 @@
 #include "engine/eval/aggregate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -9,27 +10,53 @@ namespace ss {
 DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
   DatasetEvaluation d;
   d.scenarios = static_cast<int>(scenarios.size());
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  constexpr double kAbsent = -std::numeric_limits<double>::infinity();  // the scenario has no such value (not undefined)
   auto mean = [&](const std::string& key, const std::function<double(const ScenarioEvaluation&)>& get) {
     double sum = 0;
     int n = 0;
     for (const ScenarioEvaluation& s : scenarios) {
       const double v = get(s);
       if (std::isfinite(v)) sum += v, ++n;
-      else ++d.undefined[key];
+      else if (v != kAbsent) ++d.undefined[key];
     }
-    return n ? sum / n : std::numeric_limits<double>::quiet_NaN();
+    return n ? sum / n : kNaN;
   };
-  for (int f = 0; f < kNumRealismFeatures; ++f)
-    d.realism.likelihood[f] = mean(std::string(wosac_2025_config()[f].name) + "_likelihood",
-                                   [f](const ScenarioEvaluation& s) { return s.realism.likelihood[f]; });
-  d.realism.meta = mean("realism_meta", [](const auto& s) { return s.realism.meta; });
-  d.realism.kinematic = bucket_score(RealismBucket::kinematic, d.realism.likelihood);
-  d.realism.interactive = bucket_score(RealismBucket::interactive, d.realism.likelihood);
-  d.realism.map = bucket_score(RealismBucket::map, d.realism.likelihood);
-  d.realism.collision_rate = mean("collision_rate", [](const auto& s) { return s.realism.collision_rate; });
-  d.realism.offroad_rate = mean("offroad_rate", [](const auto& s) { return s.realism.offroad_rate; });
-  d.realism.ade = mean("ade", [](const auto& s) { return s.realism.ade; });
-  d.realism.min_ade = mean("min_ade", [](const auto& s) { return s.realism.min_ade; });
+  // Realism means over the scenarios `get` gives a value for (null: the scenario lacks it, e.g. a short one's window).
+  auto realism = [&](const std::string& prefix, const std::function<const RealismScores*(const ScenarioEvaluation&)>& get) {
+    auto of = [&](const std::string& key, const std::function<double(const RealismScores&)>& value) {
+      return mean(prefix + key, [&](const ScenarioEvaluation& s) {
+        const RealismScores* r = get(s);
+        return r ? value(*r) : kAbsent;
+      });
+    };
+    RealismScores r;
+    for (int f = 0; f < kNumRealismFeatures; ++f)
+      r.likelihood[f] = of(std::string(wosac_2025_config()[f].name) + "_likelihood",
+                           [f](const RealismScores& x) { return x.likelihood[f]; });
+    r.meta = of("realism_meta", [](const RealismScores& x) { return x.meta; });
+    r.kinematic = bucket_score(RealismBucket::kinematic, r.likelihood);
+    r.interactive = bucket_score(RealismBucket::interactive, r.likelihood);
+    r.map = bucket_score(RealismBucket::map, r.likelihood);
+    r.collision_rate = of("collision_rate", [](const RealismScores& x) { return x.collision_rate; });
+    r.offroad_rate = of("offroad_rate", [](const RealismScores& x) { return x.offroad_rate; });
+    r.ade = of("ade", [](const RealismScores& x) { return x.ade; });
+    r.min_ade = of("min_ade", [](const RealismScores& x) { return x.min_ade; });
+    r.objects = 0;
+    for (const ScenarioEvaluation& s : scenarios)
+      if (const RealismScores* x = get(s)) r.objects += x->objects;
+    return r;
+  };
+  d.realism = realism("", [](const ScenarioEvaluation& s) { return &s.realism; });
+  size_t windows = 0;
+  for (const ScenarioEvaluation& s : scenarios) windows = std::max(windows, s.windows.size());
+  for (size_t w = 0; w < windows; ++w) {
+    DatasetEvaluation::Window out;
+    for (const ScenarioEvaluation& s : scenarios) out.scenarios += s.windows.size() > w;
+    out.realism = realism(std::string("windows.") + realism_window_name(static_cast<int>(w)) + ".",
+                          [w](const ScenarioEvaluation& s) { return s.windows.size() > w ? &s.windows[w] : nullptr; });
+    d.windows.push_back(out);
+  }
 
   auto motion = [&](const std::string& prefix, MotionMetrics ScenarioEvaluation::*group) {
     MotionMetrics m;

@@ -5,6 +5,7 @@
 #include <map>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "engine/eval/evaluate.h"
 
@@ -15,6 +16,13 @@ struct DatasetEvaluation {
   int named_scenarios = 0;  // scenarios whose evaluated objects are their SDC and tracks_to_predict
   int evaluated_objects = 0;
   RealismScores realism;    // means over scenarios; buckets from the mean likelihoods (as the official buckets)
+  // Per realism window (evaluate.h), over the scenarios long enough to have it; undefined values are counted under
+  // "windows.<name>.<key>".
+  struct Window {
+    int scenarios = 0;
+    RealismScores realism;
+  };
+  std::vector<Window> windows;
   MotionMetrics motion_all, motion_predict;  // means of the scene values; `agents` summed
   bool has_mmd = false;
   InitialStateMmd mmd_strict, mmd_relaxed;

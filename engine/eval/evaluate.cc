@@ -65,6 +65,22 @@ const char* eval_policy_name(EvalPolicy p) {
   return "?";
 }
 
+std::vector<FrameWindow> realism_windows(int future_frames) {
+  std::vector<FrameWindow> out;
+  for (int w = 0; w < kNumRealismWindows; ++w) {
+    const int begin = w * kRealismWindowFrames;
+    if (begin >= future_frames) break;
+    const int end = w + 1 == kNumRealismWindows ? future_frames : std::min(future_frames, begin + kRealismWindowFrames);
+    out.push_back({begin, end});
+  }
+  return out;
+}
+
+const char* realism_window_name(int window) {
+  static const char* const names[kNumRealismWindows] = {"0-8 s", "8-16 s", "16 s-end"};
+  return window >= 0 && window < kNumRealismWindows ? names[window] : "?";
+}
+
 uint64_t rollout_seed(uint64_t base, const std::string& scenario_id, int rollout) {
   uint64_t h = 0xCBF29CE484222325ull;  // FNV-1a: the same on every platform, unlike std::hash
   for (unsigned char c : scenario_id) h = (h ^ c) * 0x100000001B3ull;
@@ -79,19 +95,26 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
   if (now < 0 || now + 1 >= s.num_frames())
     return absl::InvalidArgumentError(
         absl::StrCat("scenario ", s.id, ": no frame after the current frame ", now, " of ", s.num_frames()));
-  const EvaluatedObjects ev = evaluated_objects(s);
-  if (ev.tracks.empty())
+  const std::vector<int> tracks = sim_agent_tracks(s);
+  if (tracks.empty())
     return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, ": no agent is valid at the current frame ", now));
+  // Under SdcRule::log a scenario whose only named track is the SDC has nothing to score: its values are undefined
+  // (NaN) and the dataset means leave it out.
+  const EvaluatedObjects ev = evaluated_objects(s, options.sdc);
 
   ScenarioEvaluation out;
   out.id = s.id;
+  out.sdc = options.sdc;
   out.named_by_scenario = ev.named_by_scenario;
   out.evaluated = static_cast<int>(ev.tracks.size());
-  const std::vector<int> tracks = sim_agent_tracks(s);
+  out.future_frames = s.num_frames() - 1 - now;
+  if (s.sdc_track_index >= 0) out.sdc_id = s.tracks[s.sdc_track_index].id;
   out.sim_agents = static_cast<int>(tracks.size());
   const std::vector<int> evaluated = scene_indices(tracks, ev.tracks);
   std::vector<ObjectType> types;
-  for (int t : ev.tracks) types.push_back(s.tracks[t].type);
+  for (int t : ev.tracks) types.push_back(s.tracks[t].type), out.evaluated_ids.push_back(s.tracks[t].id);
+  // The SDC's place among the sim agents (-1: none, or not valid now).
+  const int sdc_k = s.sdc_track_index >= 0 ? scene_indices(tracks, {s.sdc_track_index})[0] : -1;
 
   const EvalMap map = EvalMap::from_scenario(s);
   const JointScene log = log_scene(s, tracks);
@@ -103,6 +126,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     // Deterministic policies: one rollout, repeated so the estimators see the same sample size as the model's.
     JointScene scene = options.policy == EvalPolicy::constant_velocity ? constant_velocity_scene(s, tracks)
                                                                        : log_replay_scene(s, tracks);
+    if (options.sdc == SdcRule::log && sdc_k >= 0) scene.objects[sdc_k] = log.objects[sdc_k];  // as an RL ego
     const SceneFeatures f = scene_features(scene, evaluated, map, now, &log, evaluated);
     rollouts.assign(options.rollouts, scene);
     sims.assign(options.rollouts, f);
@@ -121,7 +145,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     for (int k = 0; k < options.rollouts; ++k) {
       SessionOptions o = options.session;
       o.seed = rollout_seed(options.session.seed, s.id, k);
-      auto steps = run_model_rollout(model, scenario, *context, o);
+      auto steps = run_model_rollout(model, scenario, *context, o, options.sdc);
       if (!steps.ok()) return steps.status();
       RolloutScene r = rollout_scene(s, tracks, *steps, full);
       driven += r.driven_frames, filled += r.filled_frames;
@@ -141,17 +165,20 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
   }
 
   out.realism = score_realism(log_features, sims, types);
+  for (const FrameWindow& w : realism_windows(out.future_frames))
+    out.windows.push_back(score_realism(log_features, sims, types, w));
   add_histograms(log_features, sims, types, out.histograms);
 
-  // Motion metrics: the SDC is left out (the model's rollouts replay its log).
+  // Motion metrics: every sim agent (all) and the tracks to predict; the SDC only when the policy drove it.
+  const bool score_sdc = options.sdc == SdcRule::model;
   std::vector<int> all, predict;
   for (size_t k = 0; k < tracks.size(); ++k)
-    if (tracks[k] != s.sdc_track_index) all.push_back(static_cast<int>(k));
+    if (score_sdc || tracks[k] != s.sdc_track_index) all.push_back(static_cast<int>(k));
   std::vector<int> named;
   for (const RequiredPrediction& r : s.tracks_to_predict) named.push_back(r.track_index);
-  for (int t : named.empty() ? ev.tracks : named) {
+  for (int t : ev.named_by_scenario ? named : ev.tracks) {
     const int k = scene_indices(tracks, {t})[0];
-    if (k >= 0 && t != s.sdc_track_index && std::find(predict.begin(), predict.end(), k) == predict.end())
+    if (k >= 0 && (score_sdc || t != s.sdc_track_index) && std::find(predict.begin(), predict.end(), k) == predict.end())
       predict.push_back(k);
   }
   out.motion_all = motion_metrics(log, rollouts, all, now);

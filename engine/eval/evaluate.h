@@ -22,9 +22,18 @@ const char* eval_policy_name(EvalPolicy p);
 
 struct EvalOptions {
   EvalPolicy policy = EvalPolicy::model;
+  SdcRule sdc = SdcRule::model;  // who drives the SDC (joint_scene.h); under log it is not evaluated
   SessionOptions session;  // the model's mode and sampling; session.seed is the base seed of every rollout
   int rollouts = 4;        // K
 };
+
+// Realism per window of the simulated future, so the drift of a long rollout shows: 0-8 s, 8-16 s, 16 s to the end
+// (frames counted after the current one; a 91-frame WOMD scenario has only the first, equal to the whole).
+inline constexpr int kRealismWindowFrames = 80;  // 8 s at 10 Hz
+inline constexpr int kNumRealismWindows = 3;
+// The windows a future of `future_frames` frames has (those with at least one frame), in order.
+std::vector<FrameWindow> realism_windows(int future_frames);
+const char* realism_window_name(int window);  // "0-8 s", "8-16 s", "16 s-end"
 
 // Counts of sim and log feature values over kPlotBins equal bins of the feature's WOSAC range (values clipped),
 // over the frames the feature scores: what `eval --plots` draws.
@@ -38,12 +47,19 @@ struct ScenarioEvaluation {
   bool named_by_scenario = false;  // evaluated objects: SDC + tracks_to_predict (else every agent valid now)
   int evaluated = 0;               // evaluated objects
   int sim_agents = 0;              // agents valid at the current frame
-  RealismScores realism;
-  MotionMetrics motion_all;        // every sim agent but the SDC (which replays its log in the model's rollouts)
-  MotionMetrics motion_predict;    // tracks_to_predict (the evaluated objects when the scenario names none), no SDC
+  SdcRule sdc = SdcRule::model;
+  int64_t sdc_id = -1;             // the SDC's object id; -1 when the scenario names none
+  std::vector<int64_t> evaluated_ids;  // the evaluated objects' ids, in WOSAC's order
+  int future_frames = 0;           // frames after the current one (80 in a 91-frame WOMD scenario)
+  RealismScores realism;           // over the whole future
+  std::vector<RealismScores> windows;  // per realism_windows(future_frames)
+  MotionMetrics motion_all;        // every sim agent (but the SDC under SdcRule::log)
+  MotionMetrics motion_predict;    // tracks_to_predict (the evaluated objects when the scenario names none), the
+                                   // SDC left out under SdcRule::log
   bool has_mmd = false;            // full mode: the model generated the initial state
   InitialStateMmd mmd_strict, mmd_relaxed;  // means over rollouts (NaN when a set was empty in every rollout)
   double filled_share = 0;         // model: share of sim-agent frames after now moved at constant velocity instead
+                                   // (the rest, 1 - filled_share, is the share the model drove)
   int to_match = 0, matched = 0;   // full mode, summed over rollouts: tracks to stand in for, and paired
   double match_distance = 0;       // full mode: mean distance of the pairs at the current frame
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // continuous features only

@@ -16,17 +16,22 @@ bool valid_at(const Track& t, int frame) {
 
 }  // namespace
 
-EvaluatedObjects evaluated_objects(const Scenario& s) {
+const char* sdc_rule_name(SdcRule r) { return r == SdcRule::model ? "model" : "log"; }
+
+EvaluatedObjects evaluated_objects(const Scenario& s, SdcRule sdc) {
   const int now = s.current_time_index;
   EvaluatedObjects out;
   auto add = [&](int i) {
     if (i < 0 || i >= static_cast<int>(s.tracks.size()) || !valid_at(s.tracks[i], now)) return;
     if (std::find(out.tracks.begin(), out.tracks.end(), i) == out.tracks.end()) out.tracks.push_back(i);
   };
-  add(s.sdc_track_index);
+  // A scenario that names its SDC but no track to predict (the 20 s files) is scored on every agent, like one that
+  // names neither: WOSAC's evaluated set is "the SDC plus tracks_to_predict", and without the second it says nothing.
   for (const RequiredPrediction& r : s.tracks_to_predict) add(r.track_index);
   out.named_by_scenario = !out.tracks.empty();
-  if (!out.named_by_scenario) out.tracks = sim_agent_tracks(s);
+  if (out.named_by_scenario) add(s.sdc_track_index);
+  else out.tracks = sim_agent_tracks(s);
+  if (sdc == SdcRule::log) std::erase(out.tracks, s.sdc_track_index);
   std::stable_sort(out.tracks.begin(), out.tracks.end(),
                    [&](int a, int b) { return s.tracks[a].id < s.tracks[b].id; });
   return out;

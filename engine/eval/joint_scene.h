@@ -31,14 +31,21 @@ struct JointScene {
 
 BoxState box_state(const ObjectState& s);
 
+// Who drives the SDC in an evaluation. model: the policy, like every other agent (WOSAC's rule: the simulation
+// drives every agent it is scored on). log: the SDC follows its logged poses, as an RL client's ego would, and is
+// therefore left out of the evaluated objects.
+enum class SdcRule { model, log };
+const char* sdc_rule_name(SdcRule r);
+
 // The objects the realism metrics score.
 struct EvaluatedObjects {
   std::vector<int> tracks;         // track indices, sorted by object id (WOSAC's order)
   bool named_by_scenario = false;  // true: the SDC and tracks_to_predict; false: every track valid at the current frame
 };
-// The SDC and tracks_to_predict valid at the current frame; when the scenario names neither (older JSON files),
-// every track valid at the current frame.
-EvaluatedObjects evaluated_objects(const Scenario& s);
+// The SDC and the tracks_to_predict valid at the current frame when the scenario names tracks to predict; otherwise
+// (older JSON files, the 20 s files) every track valid at the current frame. Under SdcRule::log the SDC is left out.
+// May be empty (a scenario whose only named track is the SDC, under SdcRule::log).
+EvaluatedObjects evaluated_objects(const Scenario& s, SdcRule sdc = SdcRule::model);
 
 // Every track valid at the current frame, in track order: the WOSAC sim agents (all are obstacles for the
 // interaction features).

@@ -14,21 +14,38 @@
 
 namespace ss {
 
+Scenario history_only(const Scenario& s) {
+  const size_t frames = static_cast<size_t>(s.current_time_index) + 1;
+  Scenario h = s;
+  h.timestamps.resize(std::min(frames, h.timestamps.size()));
+  for (Track& t : h.tracks) t.states.resize(std::min(frames, t.states.size()));
+  h.signals.resize(std::min(frames, h.signals.size()));
+  h.laser_data.clear(), h.camera_tokens.clear();  // sensor data: no session reads it
+  return h;
+}
+
 absl::StatusOr<std::vector<StepResult>> run_model_rollout(std::shared_ptr<const Model> model,
                                                           std::shared_ptr<const Scenario> scenario,
                                                           std::shared_ptr<const MapContext> map,
-                                                          const SessionOptions& options) {
+                                                          const SessionOptions& options, SdcRule sdc_rule, int steps,
+                                                          RolloutInputs* inputs) {
   const int now = scenario->current_time_index;
   if (now % kFramesPerStep != 0)
     return absl::InvalidArgumentError(absl::StrCat("scenario ", scenario->id, ": current frame ", now,
                                                    " is not a 2 Hz step (a multiple of ", kFramesPerStep, ")"));
-  auto session = Session::create(std::move(model), scenario, std::move(map), options);
+  SessionOptions o = options;
+  o.controlled_ids.clear();
+  o.control_sdc = sdc_rule == SdcRule::log;
+  auto history = std::make_shared<const Scenario>(history_only(*scenario));
+  if (inputs) *inputs = {history, o, {}};
+  auto session = Session::create(std::move(model), history, std::move(map), o);
   if (!session.ok())
     return absl::Status(session.status().code(), absl::StrCat("scenario ", scenario->id, ": ", session.status().message()));
-  const int last_frame = scenario->num_frames() - 1;
-  const int steps = (last_frame - now + kFramesPerStep - 1) / kFramesPerStep;
+  if (steps < 0) steps = (scenario->num_frames() - 1 - now + kFramesPerStep - 1) / kFramesPerStep;
   std::vector<StepResult> results = {(*session)->current()};
-  const Track* sdc = scenario->sdc_track_index >= 0 ? &scenario->tracks[scenario->sdc_track_index] : nullptr;
+  const Track* sdc = sdc_rule == SdcRule::log && scenario->sdc_track_index >= 0
+                         ? &scenario->tracks[scenario->sdc_track_index]
+                         : nullptr;
   for (int i = 0; i < steps; ++i) {
     std::vector<ControlInput> controls;
     const int frame = ((*session)->step_index() + 1) * kFramesPerStep;
@@ -40,6 +57,7 @@ absl::StatusOr<std::vector<StepResult>> run_model_rollout(std::shared_ptr<const 
         controls.push_back({sdc->id, st.x, st.y, st.heading, std::nullopt});
       }
     }
+    if (inputs) inputs->controls.push_back(controls);
     auto r = (*session)->step(controls);
     if (!r.ok())
       return absl::Status(r.status().code(),

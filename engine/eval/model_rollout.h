@@ -12,13 +12,27 @@
 
 namespace ss {
 
-// Runs a session from the scenario's current step until its last frame is covered. The SDC (when the session
-// controls it) replays its logged pose at every step while the log has one, as tools/simulate does.
-// Returns the steps from the current one on (the first is Session::current() after creation).
+// The scenario up to its current frame: tracks, timestamps and light states after it dropped, the map kept. What a
+// session is created with, so that no logged future pose can reach it except through the controls.
+Scenario history_only(const Scenario& s);
+
+// What reached a rollout's session (tests check that no logged future pose did under SdcRule::model).
+struct RolloutInputs {
+  std::shared_ptr<const Scenario> scenario;         // the scenario the session was created with
+  SessionOptions options;
+  std::vector<std::vector<ControlInput>> controls;  // per step
+};
+
+// Runs a session from the scenario's current step for `steps` 2 Hz steps; -1: until the scenario's last frame is
+// covered. The session is given history_only(scenario). SdcRule::model: the session controls no agent and the model
+// drives the SDC like every other agent (`options.control_sdc` and `controlled_ids` are overridden). SdcRule::log:
+// the SDC is the controlled agent and replays its logged pose at every step while the log has one (then keeps its
+// last control). Returns the steps from the current one on (the first is Session::current() after creation).
 absl::StatusOr<std::vector<StepResult>> run_model_rollout(std::shared_ptr<const Model> model,
                                                           std::shared_ptr<const Scenario> scenario,
                                                           std::shared_ptr<const MapContext> map,
-                                                          const SessionOptions& options);
+                                                          const SessionOptions& options, SdcRule sdc, int steps = -1,
+                                                          RolloutInputs* inputs = nullptr);
 
 struct RolloutScene {
   // Objects [0, tracks.size()) are the given tracks in order (the log's sim agents); after them, the agents the

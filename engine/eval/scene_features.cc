@@ -62,13 +62,19 @@ SceneFeatures scene_features(const JointScene& scene, std::span<const int> evalu
       const auto& ref = log->objects[log_evaluated[e]].states;
       double sum = 0;
       int n = 0;
+      std::vector<double> d;
       for (size_t t = 0; t < ref.size() && t < sim.size(); ++t) {
-        if (!ref[t].valid) continue;
-        const double dx = sim[t].x - ref[t].x, dy = sim[t].y - ref[t].y, dz = sim[t].z - ref[t].z;
-        sum += std::sqrt(dx * dx + dy * dy + dz * dz);
-        ++n;
+        double e = std::nan("");
+        if (ref[t].valid) {
+          const double dx = sim[t].x - ref[t].x, dy = sim[t].y - ref[t].y, dz = sim[t].z - ref[t].z;
+          e = std::sqrt(dx * dx + dy * dy + dz * dz);
+          sum += e;
+          ++n;
+        }
+        d.push_back(e);
       }
       f.ade.push_back(n ? sum / n : std::nan(""));
+      f.displacement.push_back(future(d, current_frame));
     }
   }
   return f;

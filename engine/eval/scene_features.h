@@ -27,6 +27,9 @@ struct SceneFeatures {
   std::array<std::vector<std::vector<double>>, kNumRealismFeatures> values;
   std::vector<std::vector<uint8_t>> valid;  // the scene's own validity over the same frames
   std::vector<double> ade;                  // per object: WOSAC ADE against the log (empty when no log was given)
+  // Per object and frame after the current one: 3-D distance to the log (NaN where the log is invalid); what a
+  // window's ADE averages. Empty when no log was given.
+  std::vector<std::vector<double>> displacement;
 };
 
 // `evaluated` indexes `scene.objects`. Features are computed on the whole trajectory (history included, which the

@@ -53,6 +53,12 @@ int Session::effective_window() const {
 Vec2 Session::roi_centre() const {
   for (const Agent& a : agents_)
     if (a.controlled) return {a.state.x, a.state.y};
+  // No controlled agent: the region follows the SDC while the model drives it (else it would stay where the SDC
+  // started, and the SDC itself would retire once it drove roi_radius away).
+  const int sdc = scenario_->sdc_track_index;
+  if (sdc >= 0)
+    for (const Agent& a : agents_)
+      if (a.id == scenario_->tracks[sdc].id) return {a.state.x, a.state.y};
   return scenario_focus(*scenario_);
 }
 

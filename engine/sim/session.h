@@ -29,7 +29,8 @@ struct SessionOptions {
   double top_p = 0.95;         // motion tokens (nucleus sampling)
   double temperature = 1.0;    // every sampled token
   int max_agents = 128;        // the cap on agents alive at once (at most the model's agent slots)
-  double roi_radius = 100.0;   // metres around the first controlled agent: agents beyond it retire, new ones spawn within
+  double roi_radius = 100.0;   // metres around the first controlled agent (else the SDC, else the scenario's focus):
+                               // agents beyond it retire, new ones spawn within
   int window_steps = 0;        // history window W in steps; 0: the model's window (at most the model's)
   std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
   bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too

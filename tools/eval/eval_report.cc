@@ -1,6 +1,8 @@
 #include "tools/eval/eval_report.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "absl/strings/str_format.h"
 
@@ -43,6 +45,26 @@ json mmd_json(const InitialStateMmd& m) {
           {"velocity", number(m.velocity)}};
 }
 
+json windows_json(std::span<const RealismScores> windows, std::span<const int> scenarios = {}) {
+  json out = json::array();
+  for (size_t w = 0; w < windows.size(); ++w) {
+    json o;
+    o["window"] = realism_window_name(static_cast<int>(w));
+    o["from_s"] = static_cast<int>(w) * kRealismWindowFrames / 10;
+    o["to_s"] = w + 1 < kNumRealismWindows ? json(static_cast<int>(w + 1) * kRealismWindowFrames / 10) : json(nullptr);
+    if (!scenarios.empty()) o["scenarios"] = scenarios[w];
+    o["objects"] = windows[w].objects;
+    put_realism(o, windows[w]);
+    out.push_back(o);
+  }
+  return out;
+}
+
+const char* sdc_rule_text(SdcRule r) {
+  return r == SdcRule::model ? "the policy drives the SDC like every other agent, and the SDC is evaluated (WOSAC)"
+                             : "the SDC follows its log (as an RL ego would) and is left out of the evaluated objects";
+}
+
 std::string fmt(double v, int digits = 4) { return std::isfinite(v) ? absl::StrFormat("%.*f", digits, v) : "n/a"; }
 
 }  // namespace
@@ -54,8 +76,14 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
   j["policy"] = eval_policy_name(run.policy);
   j["mode"] = run.policy == EvalPolicy::model ? json(session_mode_name(run.mode)) : json(nullptr);
   j["seed"] = run.seed;
+  j["sdc"] = sdc_rule_name(run.sdc);
+  j["sdc_rule"] = sdc_rule_text(run.sdc);
   if (!run.model_path.empty()) j["model"] = run.model_path;
   put_realism(j, d.realism);
+  std::vector<RealismScores> windows;
+  std::vector<int> window_scenarios;
+  for (const DatasetEvaluation::Window& w : d.windows) windows.push_back(w.realism), window_scenarios.push_back(w.scenarios);
+  j["windows"] = windows_json(windows, window_scenarios);
   put_motion(j, d.motion_all);
   j["motion_agents"] = d.motion_all.agents;
   json ttp;
@@ -67,8 +95,11 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
       {"objects", d.evaluated_objects},
       {"scenarios_sdc_and_tracks_to_predict", d.named_scenarios},
       {"scenarios_every_agent_valid_now", d.scenarios - d.named_scenarios},
-      {"rule", "the SDC and tracks_to_predict where the scenario names them; otherwise every agent valid at the "
-               "current frame"}};
+      {"rule", run.sdc == SdcRule::model
+                   ? "the SDC and tracks_to_predict where the scenario names tracks to predict; otherwise every "
+                     "agent valid at the current frame"
+                   : "tracks_to_predict where the scenario names them; otherwise every agent valid at the current "
+                     "frame; never the SDC (--sdc log)"}};
   if (run.policy == EvalPolicy::model) {
     j["model_coverage"] = {{"constant_velocity_share", number(d.filled_share)}};
     if (run.mode == SessionMode::full)
@@ -85,9 +116,19 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
     o["id"] = s.id;
     o["evaluated_objects"] = s.evaluated;
     o["evaluated_objects_named_by_scenario"] = s.named_by_scenario;
+    o["evaluated_ids"] = s.evaluated_ids;
+    o["sdc_id"] = s.sdc_id >= 0 ? json(s.sdc_id) : json(nullptr);
+    o["sdc_evaluated"] = std::find(s.evaluated_ids.begin(), s.evaluated_ids.end(), s.sdc_id) != s.evaluated_ids.end();
     o["sim_agents"] = s.sim_agents;
+    o["future_frames"] = s.future_frames;
     put_realism(o, s.realism);
     put_motion(o, s.motion_all);
+    json ttp;
+    put_motion(ttp, s.motion_predict);
+    ttp["agents"] = s.motion_predict.agents;
+    o["tracks_to_predict"] = ttp;
+    if (run.policy == EvalPolicy::model) o["model_driven_share"] = number(1 - s.filled_share);
+    o["windows"] = windows_json(s.windows);
     if (s.has_mmd) o["mmd"] = {{"strict", mmd_json(s.mmd_strict)}, {"relaxed", mmd_json(s.mmd_relaxed)}};
     per.push_back(o);
   }
@@ -99,10 +140,12 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
   std::string t;
   absl::StrAppendFormat(&t, "%s: %d scenarios x %d rollouts, seed %d\n", policy_label(run), d.scenarios, run.rollouts,
                         run.seed);
+  absl::StrAppendFormat(&t, "SDC: --sdc %s: %s\n", sdc_rule_name(run.sdc), sdc_rule_text(run.sdc));
   absl::StrAppendFormat(&t,
-                        "evaluated objects: %d (SDC + tracks_to_predict in %d scenarios; every agent valid at the "
-                        "current frame in %d)\n\n",
-                        d.evaluated_objects, d.named_scenarios, d.scenarios - d.named_scenarios);
+                        "evaluated objects: %d (%stracks_to_predict in %d scenarios; every agent valid at the "
+                        "current frame%s in %d)\n\n",
+                        d.evaluated_objects, run.sdc == SdcRule::model ? "SDC + " : "", d.named_scenarios,
+                        run.sdc == SdcRule::model ? "" : " but the SDC", d.scenarios - d.named_scenarios);
   const RealismScores& r = d.realism;
   absl::StrAppendFormat(&t, "  %-30s %s\n", "realism meta-metric", fmt(r.meta));
   absl::StrAppendFormat(&t, "  %-30s %s\n  %-30s %s\n  %-30s %s\n", "kinematic", fmt(r.kinematic), "interactive",
@@ -116,6 +159,18 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
   for (auto [name, m] : {std::pair{"all agents", &d.motion_all}, std::pair{"to predict", &d.motion_predict}})
     absl::StrAppendFormat(&t, "  %-16s %9s %9s %9s %9s %9s %9s\n", name, fmt(m->ade_avg, 3), fmt(m->ade_min, 3),
                           fmt(m->fde_avg, 3), fmt(m->fde_min, 3), fmt(m->add, 3), fmt(m->fdd, 3));
+  // Per window, when some scenario is longer than one window (a 91-frame scenario's only window is the whole).
+  if (d.windows.size() > 1) {
+    absl::StrAppendFormat(&t, "\n  %-10s %9s %9s %9s %9s %9s %9s %9s %9s %9s\n", "window", "scenarios", "objects",
+                          "realism", "kinematic", "interact.", "map", "collision", "offroad", "minADE");
+    for (size_t w = 0; w < d.windows.size(); ++w) {
+      const RealismScores& x = d.windows[w].realism;
+      absl::StrAppendFormat(&t, "  %-10s %9d %9d %9s %9s %9s %9s %9s %9s %9s\n", realism_window_name(static_cast<int>(w)),
+                            d.windows[w].scenarios, x.objects, fmt(x.meta), fmt(x.kinematic), fmt(x.interactive),
+                            fmt(x.map), fmt(x.collision_rate, 3), fmt(x.offroad_rate, 3), fmt(x.min_ade, 3));
+    }
+    absl::StrAppendFormat(&t, "  (objects: those the log has in the window; the window's minADE counts its own frames)\n");
+  }
   if (d.has_mmd) {
     absl::StrAppendFormat(&t, "\n  %-16s %9s %9s %9s %9s\n", "initial MMD", "position", "heading", "size", "velocity");
     for (auto [name, m] : {std::pair{"strict", &d.mmd_strict}, std::pair{"relaxed", &d.mmd_relaxed}})

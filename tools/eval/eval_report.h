@@ -12,15 +12,18 @@ namespace ss::cli {
 
 struct EvalRunInfo {
   EvalPolicy policy = EvalPolicy::model;
+  SdcRule sdc = SdcRule::model;
   SessionMode mode = SessionMode::motion;
   int rollouts = 0;
   uint64_t seed = 0;
   std::string model_path;  // empty for the baselines
 };
 
-// Keys: scenarios, rollouts, realism_meta, <feature>_likelihood, kinematic, interactive, map, collision_rate,
-// offroad_rate, min_ade, ade_avg, ade_min, fde_avg, fde_min, add, fdd (all agents), tracks_to_predict {...},
-// mmd {strict, relaxed} in full mode, evaluated_objects, per_scenario [...]. Undefined values are null.
+// Keys: scenarios, rollouts, policy, sdc, realism_meta, <feature>_likelihood, kinematic, interactive, map,
+// collision_rate, offroad_rate, min_ade, ade_avg, ade_min, fde_avg, fde_min, add, fdd (all agents),
+// tracks_to_predict {...}, windows [...] (realism per window), mmd {strict, relaxed} in full mode, evaluated_objects,
+// per_scenario [...] (the same per scenario, with its windows, evaluated ids and the model's driven share).
+// Undefined values are null.
 nlohmann::json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<const ScenarioEvaluation> scenarios);
 
 std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d);

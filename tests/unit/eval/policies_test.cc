@@ -95,12 +95,12 @@ TEST(Policies, ModelRolloutsAreAlignedAndReproducible) {
   EXPECT_LT(a->filled_share, 0.5);  // the model drives most sim agents
   EXPECT_FALSE(a->has_mmd);
 
-  // The scene: history is the log, the SDC replays its log at every 2 Hz step.
+  // The scene: history is the log; under SdcRule::log the SDC replays its log at every 2 Hz step.
   SessionOptions so;
   so.seed = 3;
   auto map = maps.get(*s);
   ASSERT_TRUE(map.ok());
-  auto steps = run_model_rollout(*model, s, *map, so);
+  auto steps = run_model_rollout(*model, s, *map, so, SdcRule::log);
   ASSERT_TRUE(steps.ok()) << steps.status();
   EXPECT_EQ(steps->size(), 17u);
   const std::vector<int> tracks = sim_agent_tracks(*s);
