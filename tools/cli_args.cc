@@ -1,5 +1,9 @@
 #include "tools/cli_args.h"
 
+#include <filesystem>
+
+#include "absl/strings/str_cat.h"
+
 namespace ss::cli {
 
 std::string Args::get(const std::string& name, const std::string& fallback) const {
@@ -37,6 +41,14 @@ absl::StatusOr<Args> parse_args(int argc, char** argv, int first, const std::set
     }
   }
   return args;
+}
+
+absl::StatusOr<std::string> model_path(const Args& args) {
+  if (args.has("model")) return args.get("model");
+  std::error_code ec;
+  if (std::filesystem::exists(kDefaultModel, ec)) return std::string(kDefaultModel);
+  return absl::NotFoundError(absl::StrCat("no --model given and no default model at ", kDefaultModel,
+                                          " (none ships until its training run ends: models/MODEL_CARD.md)"));
 }
 
 }  // namespace ss::cli

@@ -24,4 +24,9 @@ struct Args {
 absl::StatusOr<Args> parse_args(int argc, char** argv, int first, const std::set<std::string>& value_flags,
                                 const std::set<std::string>& switch_flags);
 
+// The trained default model, where `make serve` and the server look for it (relative to the working directory).
+inline constexpr const char* kDefaultModel = "models/default.safetensors";
+// --model, or the default model when the flag is absent; NOT_FOUND saying so when neither exists.
+absl::StatusOr<std::string> model_path(const Args& args);
+
 }  // namespace ss::cli

@@ -28,7 +28,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --json OUT.json\n"
-    "                          (--model WEIGHTS [--mode motion|full] | --baseline cv|log)\n"
+    "                          ([--model WEIGHTS] [--mode motion|full] | --baseline cv|log)\n"
     "                          [--sdc model|log] [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
     "       scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT.json]\n"
     "  Rolls every scenario out K times (default 4) from its current frame to its last (any length: a 20 s scenario\n"
@@ -114,8 +114,6 @@ int eval_main(int argc, char** argv) {
     else if (b == "log") options.policy = EvalPolicy::log_replay;
     else return fail("--baseline '" + b + "' is not cv or log");
     if (args->has("model") || args->has("mode")) return fail("--baseline runs without a model: drop --model and --mode");
-  } else if (!args->has("model")) {
-    return fail("--model WEIGHTS is required (or --baseline cv|log)");
   }
   const std::string sdc = args->get("sdc", "model");
   if (sdc == "model") options.sdc = SdcRule::model;
@@ -135,10 +133,13 @@ int eval_main(int argc, char** argv) {
   enable_flush_to_zero();
   std::shared_ptr<const Model> model;
   if (options.policy == EvalPolicy::model) {
-    auto weights = load_weights(args->get("model"));
+    auto path = model_path(*args);
+    if (!path.ok()) return fail(std::string(path.status().message()));
+    auto weights = load_weights(*path);
     if (!weights.ok()) return fail(std::string(weights.status().message()));
     auto m = Model::create(std::move(*weights));
-    if (!m.ok()) return fail(absl::StrCat(args->get("model"), ": ", m.status().message()));
+    if (!m.ok()) return fail(absl::StrCat(*path, ": ", m.status().message()));
+    run.model_path = *path;
     model = *m;
   }
   auto scenarios = read_scenarios(paths);
@@ -178,7 +179,6 @@ int eval_main(int argc, char** argv) {
   run.mode = options.session.mode;
   run.rollouts = options.rollouts;
   run.seed = options.session.seed;
-  if (model) run.model_path = args->get("model");
   const std::string json = eval_json(run, d, evaluations).dump(2) + "\n";
   const std::string out = args->get("json");
   if (out == "-") {

@@ -16,7 +16,7 @@ namespace ss::cli {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: scenestreamer simulate --scenario FILE --model WEIGHTS --out OUT.tfrecord\n"
+    "usage: scenestreamer simulate --scenario FILE [--model WEIGHTS] --out OUT.tfrecord\n"
     "                              [--mode motion|full|densify] [--sdc model|log] [--steps N] [--seed S] [--index I]\n"
     "                              [--top-p P] [--temperature T] [--max-agents N] [--densify-target N]\n"
     "  Rolls the scenario out from its current step for N model steps (0.5 s each; default: to the scenario's last\n"
@@ -39,7 +39,7 @@ int simulate_main(int argc, char** argv) {
                           "max-agents", "densify-target"},
                          {"help"});
   if (!args.ok() || args->has("help") || !args->positional.empty() || !args->has("scenario") ||
-      !args->has("model") || !args->has("out")) {
+      !args->has("out")) {
     if (!args.ok()) std::fprintf(stderr, "simulate: %s\n", std::string(args.status().message()).c_str());
     else if (!args->positional.empty()) std::fprintf(stderr, "simulate: unexpected argument '%s'\n", args->positional[0].c_str());
     std::fputs(kUsage, args.ok() && args->has("help") ? stdout : stderr);
@@ -72,7 +72,9 @@ int simulate_main(int argc, char** argv) {
   if (args->has("steps") && (steps < 0 || steps > 100000)) return fail("--steps must be in 0..100000");
 
   enable_flush_to_zero();
-  auto weights = load_weights(args->get("model"));
+  auto path = model_path(*args);
+  if (!path.ok()) return fail(std::string(path.status().message()));
+  auto weights = load_weights(*path);
   if (!weights.ok()) return fail(std::string(weights.status().message()));
   auto model = Model::create(std::move(*weights));
   if (!model.ok()) return fail(std::string(model.status().message()));

@@ -180,6 +180,13 @@ if "$bin" eval --data "$tmp/nope.json" --baseline cv --json "$tmp/x.json" 2> "$t
 grep -q "nope.json" "$tmp/err"
 if "$bin" eval --data "$1" --model "$tmp/missing.safetensors" --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
 grep -q "missing.safetensors" "$tmp/err"
+# Without --model: the default model (models/default.safetensors under the working directory) when there is one.
+mkdir -p "$tmp/cwd"
+if (cd "$tmp/cwd" && "$bin" eval --data "$1" --json x.json 2> ../err); then exit 1; fi
+grep -q "models/default.safetensors" "$tmp/err"
+mkdir -p "$tmp/cwd/models" && cp "$tmp/w.safetensors" "$tmp/cwd/models/default.safetensors"
+(cd "$tmp/cwd" && "$bin" eval --data "$1" --rollouts 1 --json x.json > /dev/null 2>&1)
+grep -q '"model": *"models/default.safetensors"' "$tmp/cwd/x.json"
 if "$bin" eval --data "$1" --baseline cv --sdc ego --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
 grep -q "ego" "$tmp/err"
 if "$bin" eval --data "$1" --baseline fancy --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
