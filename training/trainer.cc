@@ -101,8 +101,6 @@ absl::Status load_checkpoint(const fs::path& path, TorchModel& model, torch::opt
   return absl::OkStatus();
 }
 
-absl::StatusOr<ModelConfig> config_named(const std::string& name) { return model_config_by_name(name); }
-
 TeacherForcingOptions example_options(const TrainOptions& o, int phase, uint64_t slot_seed) {
   TeacherForcingOptions t;
   t.phase = phase;
@@ -155,7 +153,7 @@ void append_line(const fs::path& path, const std::string& header, const std::str
 }  // namespace
 
 absl::Status run_training(const TrainOptions& o) {
-  auto config = config_named(o.config);
+  auto config = model_config_by_name(o.config);
   if (!config.ok()) return config.status();
   if (o.out.empty()) return absl::InvalidArgumentError("--out is required");
   if (o.real_data.empty() && o.synthetic_data.empty()) return absl::InvalidArgumentError("no training data (--data)");
