@@ -237,6 +237,7 @@ absl::Status run_training(const TrainOptions& o) {
   const auto session_start = Clock::now();
   auto last_checkpoint = Clock::now();
   double window_tokens = 0, window_seconds = 0, window_loss = 0;
+  int window_steps = 0;  // steps in the logged window (fewer than log_every right after a resume)
   StatSum window;
   int64_t steps_here = 0;
   auto checkpoint = [&]() -> absl::Status {
@@ -268,20 +269,22 @@ absl::Status run_training(const TrainOptions& o) {
     window_tokens += b.tokens();
     window_seconds += seconds;
     window_loss += loss.total.item<double>();
+    ++window_steps;
     window.add(loss);
     if (st.step % o.log_every == 0 || st.step == o.steps) {
       const double tps = window_tokens / std::max(1e-9, window_seconds);
-      const double per_step = window_seconds / o.log_every;
+      const double per_step = window_seconds / window_steps;
       std::string line = absl::StrFormat("step %d/%d stage %d lr %.2e loss %.3f", st.step, o.steps, static_cast<int>(stage),
-                                         lr, window_loss / o.log_every);
+                                         lr, window_loss / window_steps);
       for (const char* n : kHeads) absl::StrAppendFormat(&line, " %s %.3f", n, window.mean(n).loss);
       absl::StrAppendFormat(&line, " | %.0f tokens/s, %.2f s/step, ETA %.1f h", tps, per_step,
                             per_step * (o.steps - st.step) / 3600);
       std::printf("%s\n", line.c_str());
       std::fflush(stdout);
       append_line(dir / "train_log.csv", csv_header(),
-                  csv_row(st.step, st.elapsed, lr, static_cast<int>(stage), tps, window_loss / o.log_every, window));
+                  csv_row(st.step, st.elapsed, lr, static_cast<int>(stage), tps, window_loss / window_steps, window));
       window_tokens = window_seconds = window_loss = 0;
+      window_steps = 0;
       window = {};
     }
     if (o.val_every > 0 && (st.step % o.val_every == 0 || st.step == o.steps) && !val_examples.empty()) {
