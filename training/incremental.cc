@@ -1,26 +1,10 @@
 #include "training/incremental.h"
 
 #include "absl/strings/str_cat.h"
-#include "engine/model/attention.h"
-#include "engine/model/key_select.h"
 #include "engine/sim/teacher_forcing.h"
 #include "training/batch.h"
 
 namespace ss::train {
-namespace {
-
-void add_keys(KeyLists& lists, const std::vector<int>& keys, const Anchor& q, auto key_anchor) {
-  for (int j : keys) {
-    lists.keys.push_back(j);
-    const RelationFeatures f = relation_features(q, key_anchor(j));
-    lists.features.insert(lists.features.end(), f.begin(), f.end());
-  }
-  lists.offsets.push_back(static_cast<int>(lists.keys.size()));
-}
-
-Anchor anchor_of(const DecoderToken& t) { return Anchor(t.has_pose, t.pose, t.step); }
-
-}  // namespace
 
 TorchDecoder::TorchDecoder(const TorchModel& model, std::vector<MapSegment> segments)
     : model_(model), segments_(std::move(segments)), index_(segments_) {
@@ -61,21 +45,7 @@ torch::Tensor TorchDecoder::decode(std::vector<DecoderToken>& tokens) {
   std::array<int, kRsFields> none;
   none.fill(kNoTarget);
   ex.state_target.assign(n, none);
-  const NeighbourLimit limit{c.knn_k, c.knn_radius, c.knn_always};
-  SelfKeySelector selector(cache_, tokens, c.window_steps, limit);
-  SelfKeys keys;
-  const int cached = static_cast<int>(cache_.size());
-  auto key_anchor = [&](int j) { return anchor_of(j < cached ? cache_[j] : tokens[j - cached]); };
-  for (int i = 0; i < n; ++i) {
-    selector.select(i, keys);
-    std::vector<int> all = keys.posed;
-    all.insert(all.end(), keys.unposed.begin(), keys.unposed.end());
-    add_keys(ex.self_keys, all, anchor_of(tokens[i]), key_anchor);
-    const DecoderToken& q = tokens[i];
-    std::vector<int> near;
-    if (q.has_pose) near = map_keys_near(segments_, index_, {q.pose.x, q.pose.y}, limit);
-    add_keys(ex.cross_keys, near, Anchor(true, q.pose, 0), [&](int j) { return Anchor(true, segments_[j].pose, 0); });
-  }
+  append_decoder_keys(cache_, tokens, segments_, index_, c, ex.self_keys, ex.cross_keys);
   const Batch b = make_batch({&ex});
   TorchModel::LayerInputs in;
   in.cross_k = cross_k_;

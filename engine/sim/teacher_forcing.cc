@@ -39,6 +39,31 @@ void close_query(KeyLists& lists) { lists.offsets.push_back(static_cast<int>(lis
 
 }  // namespace
 
+void append_decoder_keys(std::span<const DecoderToken> cached, std::span<const DecoderToken> fresh,
+                         std::span<const MapSegment> segments, const SegmentIndex& index, const ModelConfig& config,
+                         KeyLists& self, KeyLists& cross) {
+  const NeighbourLimit limit{config.knn_k, config.knn_radius, config.knn_always};
+  const int c = static_cast<int>(cached.size());
+  auto anchor_of = [&](int j) {
+    const DecoderToken& t = j < c ? cached[j] : fresh[j - c];
+    return Anchor(t.has_pose, t.pose, t.step);
+  };
+  SelfKeySelector selector(cached, fresh, config.window_steps, limit);
+  SelfKeys keys;
+  for (size_t i = 0; i < fresh.size(); ++i) {
+    const DecoderToken& q = fresh[i];
+    selector.select(static_cast<int>(i), keys);
+    const Anchor qa = anchor_of(c + static_cast<int>(i));
+    add_keys(self, keys.posed, qa, anchor_of);
+    add_keys(self, keys.unposed, qa, anchor_of);
+    close_query(self);
+    if (q.has_pose)  // map tokens carry the query's step: the step difference is 0
+      add_keys(cross, map_keys_near(segments, index, {q.pose.x, q.pose.y}, limit), Anchor(true, q.pose, 0),
+               [&](int j) { return Anchor(true, segments[j].pose, 0); });
+    close_query(cross);
+  }
+}
+
 void fill_map_inputs(TeacherForcedExample& ex, const ModelConfig& config) {
   const SegmentIndex index(ex.segments);
   const NeighbourLimit limit{config.knn_k, config.knn_radius, config.knn_always};
@@ -81,7 +106,6 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
   if (ex.segments.empty())
     return absl::FailedPreconditionError(absl::StrCat("teacher forcing: scenario ", scenario.id, " has no map segments"));
   const SegmentIndex index(ex.segments);
-  const NeighbourLimit limit{config.knn_k, config.knn_radius, config.knn_always};
   fill_map_inputs(ex, config);
 
   // The region's centre at each step: the SDC while the log has it, else the scenario's focus.
@@ -196,22 +220,8 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
     }
   }
 
-  // Keys: the decoder's own selection over the whole sequence (a fresh cache), and the map keys of posed tokens.
-  auto anchor_of = [&](int j) { return Anchor(ex.tokens[j].has_pose, ex.tokens[j].pose, ex.tokens[j].step); };
-  SelfKeySelector selector({}, ex.tokens, config.window_steps, limit);
-  SelfKeys keys;
-  for (size_t i = 0; i < ex.tokens.size(); ++i) {
-    const DecoderToken& q = ex.tokens[i];
-    selector.select(static_cast<int>(i), keys);
-    const Anchor qa = anchor_of(static_cast<int>(i));
-    add_keys(ex.self_keys, keys.posed, qa, anchor_of);
-    add_keys(ex.self_keys, keys.unposed, qa, anchor_of);
-    close_query(ex.self_keys);
-    if (q.has_pose)  // map tokens carry the query's step: the step difference is 0
-      add_keys(ex.cross_keys, map_keys_near(ex.segments, index, {q.pose.x, q.pose.y}, limit), Anchor(true, q.pose, 0),
-               [&](int j) { return Anchor(true, ex.segments[j].pose, 0); });
-    close_query(ex.cross_keys);
-  }
+  // Keys: the decoder's own selection over the whole sequence (a fresh cache).
+  append_decoder_keys({}, ex.tokens, ex.segments, index, config, ex.self_keys, ex.cross_keys);
   return ex;
 }
 

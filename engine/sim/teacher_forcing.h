@@ -5,11 +5,13 @@
 #pragma once
 
 #include <array>
+#include <span>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "engine/map/spatial_index.h"
 #include "engine/model/config.h"
 #include "engine/model/token.h"
 #include "engine/scenario/scenario.h"
@@ -57,6 +59,13 @@ struct TeacherForcedExample {
   std::vector<std::array<int, kRsFields>> state_target;  // MS: the relative-state bins (all kNoTarget elsewhere)
   int agents = 0;                     // agents in the sequence
 };
+
+// Appends the key lists of the `fresh` tokens (one query each) as the decoder chooses them over `cached` then
+// `fresh`: self-attention keys (indices into that sequence) and, for tokens with a position, their nearest
+// segments. `index` is built over `segments`.
+void append_decoder_keys(std::span<const DecoderToken> cached, std::span<const DecoderToken> fresh,
+                         std::span<const MapSegment> segments, const SegmentIndex& index, const ModelConfig& config,
+                         KeyLists& self, KeyLists& cross);
 
 // The encoder's inputs of `ex.segments` (point_features, point_segment, map_keys), as Model::encode_map reads them.
 void fill_map_inputs(TeacherForcedExample& ex, const ModelConfig& config);
