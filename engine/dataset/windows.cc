@@ -6,7 +6,7 @@
 #include <unordered_map>
 
 #include "absl/strings/str_cat.h"
-#include "engine/dataset/rng.h"
+#include "engine/base/rng.h"
 
 namespace ss {
 namespace {

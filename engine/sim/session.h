@@ -12,7 +12,7 @@
 #include "absl/status/statusor.h"
 #include "engine/model/model.h"
 #include "engine/scenario/scenario.h"
-#include "engine/sim/rng.h"
+#include "engine/base/rng.h"
 #include "engine/sim/token_builders.h"
 #include "engine/tokens/light.h"
 #include "engine/tokens/motion.h"

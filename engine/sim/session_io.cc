@@ -85,12 +85,8 @@ bool finite_state(const StepState& s) {
 
 // A fingerprint of the map tokens' geometry, so a save is not restored onto another map.
 uint64_t map_fingerprint(const MapContext& map) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&](double v) {
-    uint64_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    h = (h ^ bits) * 1099511628211ull;
-  };
+  uint64_t h = kFnv1aOffset;
+  auto mix = [&](double v) { h = fnv1a64_bytes(&v, sizeof v, h); };
   for (const MapSegment& s : map.segments) mix(s.pose.x), mix(s.pose.y), mix(s.pose.heading);
   return h;
 }

@@ -5,7 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "engine/dataset/rng.h"
+#include "engine/base/rng.h"
 #include "engine/dataset/sumo_events.h"
 #include "engine/dataset/sumo_fcd.h"
 #include "engine/dataset/sumo_map.h"
