@@ -25,6 +25,9 @@ ABSL_FLAG(std::string, scenario_dir, "",
           "Directory of WOMD TFRecord / GPUDrive JSON scenarios; empty: data/ if it holds any, else "
           "../shared/data/womd/tfrecord");
 ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction and SIGTERM, and restored from on start");
+ABSL_FLAG(double, snapshot_interval_s, 30,
+          "With --snapshot_dir: sessions that changed are saved this often, so a crash loses at most this much "
+          "(0: saved only on eviction and SIGTERM)");
 ABSL_FLAG(int, max_sessions, 256, "Cap on sessions in memory");
 ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state), MiB");
 ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
@@ -100,6 +103,7 @@ int main(int argc, char** argv) {
   ss::server::Metrics metrics;
   ss::server::ManagerOptions mo;
   mo.snapshot_dir = absl::GetFlag(FLAGS_snapshot_dir);
+  mo.snapshot_interval_s = absl::GetFlag(FLAGS_snapshot_interval_s);
   mo.max_sessions = absl::GetFlag(FLAGS_max_sessions);
   mo.max_cache_bytes = static_cast<uint64_t>(absl::GetFlag(FLAGS_max_cache_mb)) << 20;
   mo.idle_timeout_s = absl::GetFlag(FLAGS_idle_timeout_s);

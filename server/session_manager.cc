@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <random>
 
 #include "absl/strings/str_cat.h"
+#include "server/session_id.h"
 #include "server/snapshot.h"
 #include "spdlog/spdlog.h"
 
@@ -23,6 +23,9 @@ struct ManagedSession {
   std::map<int64_t, ControlInput> latest_pose;   // 10 Hz: every controller's latest pose
   std::map<int64_t, ControlInput> step_controls; // 10 Hz: poses since the last model step
   std::atomic<uint64_t> bytes{0};
+  uint64_t max_tick_growth = 0;                  // the most one tick has added to `bytes` (under engine_mu)
+  std::atomic<uint64_t> changes{1};              // counts ticks, injections and forces (1: never saved)
+  uint64_t saved_changes = 0;                    // `changes` when the snapshot was last written (under engine_mu)
   std::atomic<int64_t> last_used{0};             // steady clock, nanoseconds
 
   std::mutex mu;
@@ -56,26 +59,6 @@ struct ManagedSession {
 namespace {
 
 constexpr int kTicksPerStep10Hz = 5;
-
-std::string random_id() {
-  std::random_device rd;  // the kernel's CSPRNG: ids are unguessable
-  static const char* hex = "0123456789abcdef";
-  std::string s;
-  for (int i = 0; i < 4; ++i) {
-    uint32_t v = rd();
-    for (int j = 0; j < 8; ++j) s += hex[(v >> (4 * j)) & 15];
-  }
-  return s;
-}
-
-absl::Status valid_proposed_id(const std::string& id) {
-  if (id.size() > 128) return absl::InvalidArgumentError("session_id: longer than 128 characters");
-  for (char c : id)
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
-      return absl::InvalidArgumentError(absl::StrCat("session_id '", id, "': only letters, digits, '-', '_', '.'"));
-  if (id[0] == '.') return absl::InvalidArgumentError(absl::StrCat("session_id '", id, "' must not start with '.'"));
-  return absl::OkStatus();
-}
 
 StepResult view_at(const Session& session, int tick_hz, int64_t tick) {
   if (tick_hz != 10 || tick % kTicksPerStep10Hz == 0) return session.current();
@@ -120,10 +103,10 @@ uint64_t SessionManager::total_bytes() {
 }
 
 absl::StatusOr<std::string> SessionManager::new_id(const std::string& proposed) {
-  if (proposed.empty()) return random_id();
-  if (auto st = valid_proposed_id(proposed); !st.ok()) return st;
+  if (proposed.empty()) return random_session_id();
+  if (auto st = check_session_id(proposed); !st.ok()) return st;
   if (sessions_.count(proposed) || evicted_.count(proposed))
-    return absl::AlreadyExistsError(absl::StrCat("session_id '", proposed, "' is already in use"));
+    return absl::AlreadyExistsError(absl::StrCat("session_id ", echo_id(proposed), " is already in use"));
   return proposed;
 }
 
@@ -138,7 +121,10 @@ absl::Status SessionManager::save(ManagedSession& s) {
     snap.tick = s.tick;
   }
   snap.session_bytes = s.session->save();
-  return write_snapshot(options_.snapshot_dir, snap);
+  const uint64_t changes = s.changes;
+  absl::Status st = write_snapshot(options_.snapshot_dir, snap);
+  if (st.ok()) s.saved_changes = changes;
+  return st;
 }
 
 absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>& s) {
@@ -160,17 +146,20 @@ absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>&
   return absl::OkStatus();
 }
 
-absl::Status SessionManager::make_room_locked(uint64_t extra_bytes) {
-  auto over = [&] {
-    uint64_t b = extra_bytes;
+absl::Status SessionManager::make_room_locked(uint64_t extra_bytes, int extra_sessions, const ManagedSession* keep) {
+  auto held = [&] {
+    uint64_t b = 0;
     for (const auto& [id, s] : sessions_) b += s->bytes;
-    return static_cast<int>(sessions_.size()) + 1 > options_.max_sessions ||
-           b > options_.max_cache_bytes;
+    return b;
+  };
+  auto over = [&] {
+    return static_cast<int>(sessions_.size()) + extra_sessions > options_.max_sessions ||
+           held() + extra_bytes > options_.max_cache_bytes;
   };
   while (over()) {
     std::vector<std::shared_ptr<ManagedSession>> idle;
     for (const auto& [id, s] : sessions_)
-      if (s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
+      if (s.get() != keep && s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
     std::sort(idle.begin(), idle.end(), [](const auto& a, const auto& b) { return a->last_used < b->last_used; });
     bool evicted = false;
     for (const auto& s : idle)
@@ -178,15 +167,13 @@ absl::Status SessionManager::make_room_locked(uint64_t extra_bytes) {
         evicted = true;
         break;
       }
-    if (!evicted) {
-      uint64_t b = 0;
-      for (const auto& [id, s] : sessions_) b += s->bytes;
+    if (!evicted)
       return absl::ResourceExhaustedError(absl::StrCat(
-          std::to_string(sessions_.size()), " sessions holding ", std::to_string(b),
-          " bytes: the caps are --max_sessions=", std::to_string(options_.max_sessions), " and --max_cache_mb=",
-          std::to_string(options_.max_cache_bytes >> 20), ", and no session has been idle for --evict_idle_s=",
-          std::to_string(options_.evict_idle_s), " s to be evicted"));
-    }
+          std::to_string(sessions_.size()), " sessions holding ", std::to_string(held()), " bytes, ",
+          std::to_string(extra_bytes), " more bytes needed: the caps are --max_sessions=",
+          std::to_string(options_.max_sessions), " and --max_cache_mb=", std::to_string(options_.max_cache_bytes >> 20),
+          ", and no other session has been idle for --evict_idle_s=", std::to_string(options_.evict_idle_s),
+          " s to be evicted"));
   }
   return absl::OkStatus();
 }
@@ -251,28 +238,31 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::find(const std::
       return it->second;
     }
     if (!evicted_.count(id))
-      return absl::NotFoundError(absl::StrCat("session_id '", id, "' is not an open session"));
+      return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
     if (draining_) return absl::UnavailableError("the server is draining: evicted sessions are not restored now");
   }
   // Evicted earlier: bring it back from its snapshot.
-  auto s = restore_file(snapshot_path(options_.snapshot_dir, id), deadline);
+  auto s = restore_snapshot(id, deadline);
   if (!s.ok()) return s.status();
   std::lock_guard<std::mutex> l(mu_);
   auto it = sessions_.find(id);
   if (it != sessions_.end()) return it->second;  // another call restored it first
+  // A CloseSession while the snapshot was being read won: the session stays closed.
+  if (!evicted_.count(id))
+    return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " was closed while it was being restored"));
   if (auto st = make_room_locked((*s)->bytes); !st.ok()) return st;
   evicted_.erase(id);
   sessions_[id] = *s;
-  std::error_code ec;
-  std::filesystem::remove(snapshot_path(options_.snapshot_dir, id), ec);
+  // The snapshot stays until the session closes: a crash before the next save still finds it.
   spdlog::info("session {}: restored from its eviction snapshot at tick {}", id, (*s)->tick);
   return *s;
 }
 
-absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_file(const std::string& path,
-                                                                             Clock::time_point deadline) {
-  auto snap = read_snapshot(path);
+absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_snapshot(const std::string& id,
+                                                                                 Clock::time_point deadline) {
+  auto snap = read_snapshot(options_.snapshot_dir, id);
   if (!snap.ok()) return snap.status();
+  const std::string path = *snapshot_path(options_.snapshot_dir, id);
   auto s = std::make_shared<ManagedSession>();
   s->id = snap->session_id;
   s->source = snap->source;
@@ -287,13 +277,15 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_file(con
   });
   if (!st.ok()) return absl::Status(st.code(), absl::StrCat("snapshot ", path, ": ", std::string(st.message())));
   s->touch();
+  s->saved_changes = s->changes;  // its snapshot is on disk already
   std::lock_guard<std::mutex> l(s->mu);
   s->tick = snap->tick;
   s->publish(view_at(*s->session, s->tick_hz, s->tick));
   return s;
 }
 
-absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n) {
+absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
+                                       Clock::time_point deadline, std::vector<TickView>* out) {
   int64_t tick;
   {
     std::lock_guard<std::mutex> l(s.mu);
@@ -303,37 +295,68 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
   for (int i = 0; i < n; ++i) {
     // The poses are for the first tick; later ticks of the call keep the controlled agents' last control.
     const std::vector<ControlInput>& controls_now = i == 0 ? controls : none;
-    const auto t0 = Clock::now();
+    // The cache cap holds as sessions grow: room for the largest growth of one tick seen so far, before the tick.
+    if (auto st = room_to_grow(s); !st.ok()) {
+      if (i == 0) return st;
+      return absl::Status(st.code(), absl::StrCat(st.message(), " (after ", std::to_string(i), " of ",
+                                                  std::to_string(n), " ticks; the session is at tick ",
+                                                  std::to_string(tick), ")"));
+    }
     StepResult view;
-    if (s.tick_hz == 2) {
-      auto r = s.session->step(controls_now);
-      if (!r.ok()) return r.status();
-      view = std::move(*r);
-    } else {
-      for (const ControlInput& c : controls_now) s.latest_pose[c.agent_id] = s.step_controls[c.agent_id] = c;
-      const int sub = static_cast<int>((tick + 1) % kTicksPerStep10Hz);
-      if (sub == 0) {
-        std::vector<ControlInput> at_step;
-        for (const auto& [id, c] : s.step_controls) at_step.push_back(c);
-        auto r = s.session->step(at_step);
+    // One compute slot per tick, not per call: a long call hands the slot over between its ticks, so a short call on
+    // another session waits for one tick rather than for all of them.
+    absl::Status st = compute(deadline, [&]() -> absl::Status {
+      const auto t0 = Clock::now();
+      if (s.tick_hz == 2) {
+        auto r = s.session->step(controls_now);
         if (!r.ok()) return r.status();
-        s.step_controls.clear();
         view = std::move(*r);
       } else {
-        std::vector<ControlInput> pushed;
-        for (const auto& [id, c] : s.latest_pose) pushed.push_back(c);
-        view = tick_between_steps(*s.session, sub, kTicksPerStep10Hz, pushed);
+        for (const ControlInput& c : controls_now) s.latest_pose[c.agent_id] = s.step_controls[c.agent_id] = c;
+        const int sub = static_cast<int>((tick + 1) % kTicksPerStep10Hz);
+        if (sub == 0) {
+          std::vector<ControlInput> at_step;
+          for (const auto& [id, c] : s.step_controls) at_step.push_back(c);
+          auto r = s.session->step(at_step);
+          if (!r.ok()) return r.status();
+          s.step_controls.clear();
+          view = std::move(*r);
+        } else {
+          std::vector<ControlInput> pushed;
+          for (const auto& [id, c] : s.latest_pose) pushed.push_back(c);
+          view = tick_between_steps(*s.session, sub, kTicksPerStep10Hz, pushed);
+        }
       }
+      metrics_.count_step(std::chrono::duration<double>(Clock::now() - t0).count());
+      return absl::OkStatus();
+    });
+    if (!st.ok()) {
+      if (i == 0 || st.code() != absl::StatusCode::kDeadlineExceeded) return st;
+      return absl::Status(st.code(), absl::StrCat(st.message(), " (after ", std::to_string(i), " of ",
+                                                  std::to_string(n), " ticks; the session is at tick ",
+                                                  std::to_string(tick), ")"));
     }
     ++tick;
+    ++s.changes;
+    const uint64_t before = s.bytes;
     s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
-    metrics_.count_step(std::chrono::duration<double>(Clock::now() - t0).count());
+    if (s.bytes > before) s.max_tick_growth = std::max(s.max_tick_growth, s.bytes - before);
     std::lock_guard<std::mutex> l(s.mu);
     s.tick = tick;
     s.publish(view);
+    out->push_back(s.recent.back());
     s.cv.notify_all();
   }
   return absl::OkStatus();
+}
+
+absl::Status SessionManager::room_to_grow(ManagedSession& s) {
+  std::lock_guard<std::mutex> l(mu_);
+  absl::Status st = make_room_locked(s.max_tick_growth, 0, &s);
+  if (st.ok()) return st;
+  return absl::ResourceExhaustedError(absl::StrCat(
+      "session '", s.id, "' (", std::to_string(s.bytes.load()), " bytes, up to ", std::to_string(s.max_tick_growth),
+      " more a tick) has no room to grow: ", st.message()));
 }
 
 absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id,
@@ -348,7 +371,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
   if (num_ticks < 0 || num_ticks > 1000)
     return absl::InvalidArgumentError(absl::StrCat("num_ticks ", std::to_string(num_ticks), ": must be in 1..1000"));
   std::unique_lock<std::mutex> l(s.mu);
-  if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session '", id, "' was closed"));
+  if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
   for (size_t i = 0; i < controls.size(); ++i)
     if (!s.controllers.count(controls[i].agent_id))
       return absl::InvalidArgumentError(absl::StrCat("poses[", std::to_string(i), "].agent_id ",
@@ -370,8 +393,9 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
   }
   for (const ControlInput& c : controls) s.pending[c.agent_id] = c;
   const int64_t target = s.tick + 1;
+  std::vector<TickView> out;  // the ticks this call computed (all of them, however many it asked for)
   while (s.tick < target) {
-    if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session '", id, "' was closed"));
+    if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
     if (s.failed_tick == target) return s.failed_status;
     // With one controller (or none) the caller is the only client: its call is the tick. With several, the tick
     // waits for every controller's pose or the session's tick deadline.
@@ -393,7 +417,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
         if (!e.try_lock_until(deadline))
           st = absl::DeadlineExceededError("the call's deadline passed while the session was busy");
         else
-          st = compute(deadline, [&] { return run_ticks(s, taken, num_ticks); });
+          st = run_ticks(s, taken, num_ticks, deadline, &out);
       }
       l.lock();
       s.stepping = false;
@@ -415,9 +439,9 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
     }
     s.cv.wait_until(l, s.stepping ? deadline : until);
   }
-  std::vector<TickView> out;
-  for (const TickView& t : s.recent)
-    if (t.tick >= target && t.tick < target + num_ticks) out.push_back(t);
+  if (out.empty())  // another controller's call computed the tick (multi-client calls ask for one tick)
+    for (const TickView& t : s.recent)
+      if (t.tick == target) out.push_back(t);
   s.touch();
   return out;
 }
@@ -436,6 +460,7 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
   absl::Status st = compute(deadline, [&] {
     auto r2 = s.session->inject(r);
     if (!r2.ok()) return r2.status();
+    ++s.changes;
     ids = *r2;
     s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
     return absl::OkStatus();
@@ -455,7 +480,9 @@ absl::Status SessionManager::state_force(const std::string& id, const StateForce
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
-  return s.session->state_force(r);
+  absl::Status st = s.session->state_force(r);
+  if (st.ok()) ++s.changes;
+  return st;
 }
 
 absl::Status SessionManager::close(const std::string& id) {
@@ -465,20 +492,23 @@ absl::Status SessionManager::close(const std::string& id) {
     auto it = sessions_.find(id);
     if (it == sessions_.end()) {
       if (evicted_.erase(id)) {
-        std::error_code ec;
-        std::filesystem::remove(snapshot_path(options_.snapshot_dir, id), ec);
+        remove_snapshot(options_.snapshot_dir, id);
         spdlog::info("session {}: closed (was evicted)", id);
         return absl::OkStatus();
       }
-      return absl::NotFoundError(absl::StrCat("session_id '", id, "' is not an open session"));
+      return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
     }
     s = it->second;
     sessions_.erase(it);
   }
-  std::lock_guard<std::mutex> l(s->mu);
-  s->closed = true;
-  s->cv.notify_all();
-  spdlog::info("session {}: closed at tick {}", id, s->tick);
+  {
+    std::lock_guard<std::mutex> l(s->mu);
+    s->closed = true;
+    s->cv.notify_all();
+    spdlog::info("session {}: closed at tick {}", id, s->tick);
+  }
+  // A background save running now checks `closed` after writing and removes its file too.
+  if (!options_.snapshot_dir.empty()) remove_snapshot(options_.snapshot_dir, id);
   return absl::OkStatus();
 }
 
@@ -555,6 +585,8 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   {
     std::lock_guard<std::mutex> l(mu_);
     if (sessions_.count(nid)) return absl::AlreadyExistsError(absl::StrCat("session_id '", nid, "' is in use"));
+    // Again at insert: other forks may have filled the room while this one waited for its busy source.
+    if (auto st = make_room_locked(f->bytes); !st.ok()) return st;
     sessions_[nid] = f;
   }
   spdlog::info("session {}: forked from {} at tick {}", nid, id, f->tick);
@@ -613,27 +645,87 @@ int SessionManager::save_all() {
 int SessionManager::restore_all() {
   if (options_.snapshot_dir.empty()) return 0;
   int n = 0;
-  for (const std::string& path : list_snapshots(options_.snapshot_dir)) {
-    auto s = restore_file(path, Clock::now() + std::chrono::minutes(10));
+  for (const std::string& id : list_snapshots(options_.snapshot_dir)) {
+    if (auto st = check_session_id(id); !st.ok()) {
+      spdlog::error("snapshot {}: not restored: the file name is not a session id: {}", echo_id(id),
+                    std::string(st.message()));
+      continue;
+    }
+    // The caps hold on a restart too: sessions beyond them stay evicted and come back on their next call.
+    {
+      std::lock_guard<std::mutex> l(mu_);
+      if (static_cast<int>(sessions_.size()) >= options_.max_sessions) {
+        evicted_.insert(id);
+        spdlog::info("session {}: left evicted (--max_sessions={} reached); restored on its next call", id,
+                     options_.max_sessions);
+        continue;
+      }
+    }
+    auto s = restore_snapshot(id, Clock::now() + std::chrono::minutes(10));
     if (!s.ok()) {
-      spdlog::error("{}: not restored: {}", path, std::string(s.status().message()));
+      spdlog::error("session {}: not restored: {}", id, std::string(s.status().message()));
       continue;
     }
     {
       std::lock_guard<std::mutex> l(mu_);
-      sessions_[(*s)->id] = *s;
+      uint64_t held = (*s)->bytes;
+      for (const auto& [other, o] : sessions_) held += o->bytes;
+      if (held > options_.max_cache_bytes) {
+        evicted_.insert(id);
+        spdlog::info("session {}: left evicted ({} bytes would pass --max_cache_mb={}); restored on its next call",
+                     id, (*s)->bytes.load(), options_.max_cache_bytes >> 20);
+        continue;
+      }
+      sessions_[id] = *s;
     }
-    std::error_code ec;
-    std::filesystem::remove(path, ec);
-    spdlog::info("session {}: restored from {} at tick {}", (*s)->id, path, (*s)->tick);
+    spdlog::info("session {}: restored at tick {}", id, (*s)->tick);
     ++n;
   }
   return n;
 }
 
+void SessionManager::save_changed() {
+  std::vector<std::shared_ptr<ManagedSession>> all;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    for (const auto& [id, s] : sessions_) all.push_back(s);
+  }
+  int saved = 0;
+  for (const auto& s : all) {
+    if (stop_ || draining_) return;
+    // A session busy in an engine call is saved at the next interval.
+    std::unique_lock<std::timed_mutex> e(s->engine_mu, std::try_to_lock);
+    if (!e.owns_lock() || s->changes == s->saved_changes) continue;
+    absl::Status st = compute(Clock::now() + std::chrono::seconds(10), [&] { return save(*s); });
+    if (!st.ok()) {
+      spdlog::warn("session {}: background snapshot failed: {}", s->id, std::string(st.message()));
+      continue;
+    }
+    ++saved;
+    bool closed;
+    {
+      std::lock_guard<std::mutex> l(s->mu);
+      closed = s->closed;
+    }
+    if (closed && !evicted_contains(s->id)) remove_snapshot(options_.snapshot_dir, s->id);
+  }
+  if (saved) spdlog::debug("background snapshots: {} sessions saved", saved);
+}
+
+bool SessionManager::evicted_contains(const std::string& id) {
+  std::lock_guard<std::mutex> l(mu_);
+  return evicted_.count(id) > 0;
+}
+
 void SessionManager::reaper() {
+  auto last_save = Clock::now();
   while (!stop_) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (!options_.snapshot_dir.empty() && options_.snapshot_interval_s > 0 &&
+        Clock::now() - last_save >= std::chrono::duration<double>(options_.snapshot_interval_s)) {
+      save_changed();
+      last_save = Clock::now();
+    }
     std::vector<std::string> expired;
     {
       std::lock_guard<std::mutex> l(mu_);

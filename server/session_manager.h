@@ -27,6 +27,7 @@ using Clock = std::chrono::steady_clock;
 
 struct ManagerOptions {
   std::string snapshot_dir;          // empty: no snapshots (eviction then drops the session)
+  double snapshot_interval_s = 30;   // changed sessions are saved this often (0: only on eviction and SIGTERM)
   int max_sessions = 256;
   uint64_t max_cache_bytes = uint64_t{8} << 30;
   double idle_timeout_s = 3600;      // a session unused this long is closed
@@ -91,14 +92,23 @@ class SessionManager {
  private:
   absl::StatusOr<std::shared_ptr<ManagedSession>> find(const std::string& id, Clock::time_point deadline);
   absl::StatusOr<std::string> new_id(const std::string& proposed);
-  // Evicts idle sessions (LRU) until one more session holding `extra_bytes` fits. Holds mu_.
-  absl::Status make_room_locked(uint64_t extra_bytes);
+  // Evicts idle sessions other than `keep` (LRU) until `extra_sessions` more sessions and `extra_bytes` more bytes
+  // fit under the caps; RESOURCE_EXHAUSTED when they cannot. Holds mu_.
+  absl::Status make_room_locked(uint64_t extra_bytes, int extra_sessions = 1, const ManagedSession* keep = nullptr);
+  // Room under --max_cache_mb for one more tick of `s` (its largest growth so far), evicting idle sessions if needed.
+  absl::Status room_to_grow(ManagedSession& s);
   absl::Status evict_locked(const std::shared_ptr<ManagedSession>& s);
   absl::Status save(ManagedSession& s);
-  absl::StatusOr<std::shared_ptr<ManagedSession>> restore_file(const std::string& path, Clock::time_point deadline);
+  absl::StatusOr<std::shared_ptr<ManagedSession>> restore_snapshot(const std::string& id, Clock::time_point deadline);
   // Runs `fn` on a compute slot (bounded by compute_threads), or DEADLINE_EXCEEDED when none frees up in time.
   absl::Status compute(Clock::time_point deadline, const std::function<absl::Status()>& fn);
-  absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n);
+  // Runs n ticks, each on a compute slot of its own, appending each tick's view to `out`.
+  absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
+                         Clock::time_point deadline, std::vector<TickView>* out);
+  // Saves every session that changed since its last snapshot (the background snapshots).
+  void save_changed();
+  bool evicted_contains(const std::string& id);
+  // Closes idle sessions and writes the background snapshots.
   void reaper();
 
   Engine& engine_;
