@@ -257,7 +257,11 @@ TEST_F(SessionTest, BadControlsAreRefusedAndChangeNothing) {
   unknown.agent_id = 123456789;
   ControlInput not_controlled = c;
   not_controlled.agent_id = s->current().agents[1].id;
-  for (const ControlInput& bad : {nan, jump, unknown, not_controlled}) {
+  ControlInput huge_heading = c;
+  huge_heading.heading = 1e308;
+  ControlInput backwards = c;
+  backwards.speed = -50;
+  for (const ControlInput& bad : {nan, jump, unknown, not_controlled, huge_heading, backwards}) {
     auto r = s->step({bad});
     EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
     EXPECT_FALSE(r.status().message().empty());
@@ -308,6 +312,60 @@ TEST_F(SessionTest, SaveRestoreContinuesIdentically) {
     EXPECT_TRUE(same_rollout(a, b)) << session_mode_name(mode);
     std::printf("%s: snapshot of %zu bytes at step 26\n", session_mode_name(mode), bytes.size());
   }
+}
+
+// The 10 Hz clock is the session's: poses pushed between model steps are part of its state (saved, forked) and are
+// checked when they arrive.
+TEST_F(SessionTest, TenHzPosesPushedBetweenStepsSurviveSaveAndRestore) {
+  SessionOptions o;
+  o.tick_hz = 10;
+  o.seed = 4;
+  auto s = start(w(), o);
+  const int64_t sdc = w().scenario->tracks[w().scenario->sdc_track_index].id;
+  auto pose_at = [&](const Session& session, int k) {
+    const StepResult v = session.tick_view();
+    for (const AgentView& a : v.agents)
+      if (a.id == sdc) return ControlInput{sdc, a.state.x + 0.1 * a.state.vx + 0.05 * k, a.state.y + 0.1 * a.state.vy,
+                                           a.state.heading + 0.01, std::nullopt};
+    return ControlInput{};
+  };
+  for (int k = 0; k < 7; ++k) ASSERT_TRUE(s->tick({pose_at(*s, k)}).ok());
+  EXPECT_EQ(s->tick_index(), 7);
+  EXPECT_EQ(s->step_index(), w().scenario->current_time_index / 5 + 1);
+  auto restored = Session::restore(w().model, w().scenario, w().map, s->save());
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  EXPECT_EQ((*restored)->tick_index(), 7);
+  EXPECT_TRUE(same_result(s->tick_view(), (*restored)->tick_view()));
+  for (int k = 7; k < 13; ++k) {
+    auto a = s->tick({pose_at(*s, k)});
+    auto b = (*restored)->tick({pose_at(**restored, k)});
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_TRUE(same_result(*a, *b)) << "tick " << k + 1;
+  }
+}
+
+TEST_F(SessionTest, TenHzPosesAreCheckedWhenTheyArrive) {
+  SessionOptions o;
+  o.tick_hz = 10;
+  auto s = start(w(), o);
+  ControlInput far = sdc_control(w(), 2);
+  far.x += 5000;  // once accepted between model steps, shown, then failing the step two ticks later
+  const std::string before = s->save();
+  auto r = s->tick({far});
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("from the last one"), std::string::npos) << r.status();
+  EXPECT_EQ(s->save(), before);
+  for (int k = 0; k < 5; ++k) EXPECT_TRUE(s->tick({}).ok());  // the model step at the fifth tick included
+  EXPECT_EQ(s->tick_index(), 5);
+}
+
+TEST_F(SessionTest, AnOlderStateFormatIsRefusedNamingBothVersions) {
+  auto s = start(w(), {});
+  std::string bytes = s->save();
+  bytes[7] = '1';
+  auto r = Session::restore(w().model, w().scenario, w().map, bytes);
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_NE(r.status().message().find("version 1 is not this engine's version 2"), std::string::npos) << r.status();
 }
 
 TEST_F(SessionTest, RestoreRefusesCorruptBytes) {

@@ -1,0 +1,84 @@
+// A session's plain value types: its options, what a tick shows, and the requests a host sends. No Eigen and no
+// engine internals, so the public header (engine/scenestreamer.h) can hand them to hosts as they are.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "engine/geometry/geometry.h"
+#include "engine/tokens/light.h"
+#include "engine/tokens/resample.h"
+
+namespace ss {
+
+enum class SessionMode : int { motion = 0, full = 1, densify = 2 };
+const char* session_mode_name(SessionMode m);
+
+struct SessionOptions {
+  SessionMode mode = SessionMode::motion;
+  uint64_t seed = 0;
+  double top_p = 0.95;         // motion tokens (nucleus sampling)
+  double temperature = 1.0;    // every sampled token
+  int max_agents = 128;        // the cap on agents alive at once (at most the model's agent slots)
+  double roi_radius = 100.0;   // metres around the first controlled agent (else the SDC, else the scenario's focus):
+                               // agents beyond it retire, new ones spawn within
+  int window_steps = 0;        // history window W in steps; 0: the model's window (at most the model's)
+  std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
+  bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too
+  int densify_target = 0;      // densify: agents to reach at the first step
+  int tick_hz = 2;             // ticks per second: 2 (a tick is a model step) or 10 (five ticks per model step)
+  bool operator==(const SessionOptions&) const = default;
+};
+
+// An agent as the caller sees it.
+struct AgentView {
+  int64_t id = 0;         // public id: the track id for log agents; new ones count up from above the largest track id
+  int type = 0;           // 0 vehicle, 1 pedestrian, 2 cyclist
+  StepState state;
+  bool controlled = false;
+  bool entered = false;   // entered at this step
+};
+
+struct LightView {
+  int64_t lane = 0;       // the lane feature it controls
+  LightState state = LightState::unknown;
+  Pose stop_point;        // stop point, heading of its lane
+};
+
+struct StepResult {
+  int step = 0;                 // model step (2 Hz) since the scenario's first frame
+  double time = 0;              // seconds: step * 0.5
+  std::vector<AgentView> agents;
+  std::vector<LightView> lights;
+  std::vector<int64_t> left;    // agents retired at this step
+};
+
+// A controlled agent's pose at the next tick.
+struct ControlInput {
+  int64_t agent_id = 0;
+  double x = 0, y = 0, heading = 0;
+  std::optional<double> speed;  // along the heading; derived from the displacement when absent
+};
+
+struct InjectRequest {
+  int count = 0;                  // sample this many new agents (0 when `state` is given)
+  std::optional<int> type;        // 0 vehicle, 1 pedestrian, 2 cyclist; sampled when absent
+  std::optional<Vec2> near;       // spawn within `near_radius` of this point
+  double near_radius = 20.0;
+  std::optional<int> segment;     // spawn on this map segment (index among the session's map tokens)
+  std::optional<StepState> state; // insert exactly this agent (with `type`, default vehicle)
+};
+
+struct StateForceRequest {
+  std::vector<std::pair<int64_t, StepState>> agents;     // agent id -> state at the next step (a teleport)
+  std::vector<std::pair<int64_t, LightState>> lights;    // lane id -> state at the next step
+};
+
+// The session state format's magic (session_save): its last character is the format's version. Version 2 added the
+// tick clock (tick rate, tick, the poses pushed since the last model step).
+inline constexpr char kSessionStateMagic[9] = "SSSESSN2";
+
+}  // namespace ss
