@@ -9,7 +9,7 @@ PACKAGES="
   clang libclang-rt-14-dev
   protobuf-compiler libprotobuf-dev
   libgrpc++-dev libgrpc-dev protobuf-compiler-grpc
-  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev
+  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-grpcio python3-protobuf
   sumo sumo-tools

@@ -8,6 +8,7 @@
 #include "engine/scenario/read.h"
 #include "engine/scenario/womd_proto.h"
 #include "engine/sim/map_cache.h"
+#include "engine/sim/session.h"
 
 namespace ss {
 
@@ -93,26 +94,55 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
 }
 
 const std::vector<EngineScenario>& engine_scenarios(const Engine& engine) { return engine.listing; }
-const ModelConfig& engine_model_config(const Engine& engine) { return engine.model->config(); }
+const std::string& engine_model_name(const Engine& engine) { return engine.model->config().name; }
 bool engine_random_weights(const Engine& engine) { return engine.random_weights; }
 int engine_map_encodes(const Engine& engine) { return engine.maps->encodes(); }
 
-absl::StatusOr<std::unique_ptr<Session>> session_create(Engine& engine, const SessionSource& source,
-                                                        const SessionOptions& options) {
+void SessionDeleter::operator()(Session* s) const { delete s; }
+
+absl::StatusOr<SessionPtr> session_create(Engine& engine, const SessionSource& source, const SessionOptions& options) {
   auto scenario = resolve(engine, source);
   if (!scenario.ok()) return scenario.status();
   auto map = engine.maps->get(**scenario);
   if (!map.ok()) return map.status();
-  return Session::create(engine.model, *scenario, *map, options);
+  auto s = Session::create(engine.model, *scenario, *map, options);
+  if (!s.ok()) return s.status();
+  return SessionPtr(s->release());
 }
 
-absl::StatusOr<std::unique_ptr<Session>> session_restore(Engine& engine, const SessionSource& source,
-                                                         const std::string& saved) {
+absl::StatusOr<SessionPtr> session_restore(Engine& engine, const SessionSource& source, const std::string& state) {
   auto scenario = resolve(engine, source);
   if (!scenario.ok()) return scenario.status();
   auto map = engine.maps->get(**scenario);
   if (!map.ok()) return map.status();
-  return Session::restore(engine.model, *scenario, *map, saved);
+  auto s = Session::restore(engine.model, *scenario, *map, state);
+  if (!s.ok()) return s.status();
+  return SessionPtr(s->release());
+}
+
+SessionPtr session_fork(const Session& session) { return SessionPtr(session.fork().release()); }
+absl::StatusOr<StepResult> session_tick(Session& session, const std::vector<ControlInput>& controls) {
+  return session.tick(controls);
+}
+StepResult session_view(const Session& session) { return session.tick_view(); }
+int64_t session_tick_index(const Session& session) { return session.tick_index(); }
+absl::StatusOr<std::vector<int64_t>> session_inject(Session& session, const InjectRequest& request) {
+  return session.inject(request);
+}
+absl::Status session_force(Session& session, const StateForceRequest& request) { return session.state_force(request); }
+const SessionOptions& session_options(const Session& session) { return session.options(); }
+std::string session_save(const Session& session) { return session.save(); }
+
+uint64_t session_memory_bytes(const Engine& engine, const Session& session) {
+  uint64_t b = session.memory_bytes();
+  const Scenario& s = session.scenario();
+  auto bundled = engine.scenarios.find(s.id);
+  if (bundled != engine.scenarios.end() && bundled->second.get() == &s) return b;
+  // A client-sent scenario: its parsed form and its map encoding are this session's alone.
+  b += sizeof(Scenario) + s.timestamps.capacity() * sizeof(double) + s.signals.capacity() * 64;
+  for (const Track& t : s.tracks) b += sizeof(Track) + t.states.capacity() * sizeof(ObjectState);
+  for (const MapFeature& m : s.map_features) b += sizeof(MapFeature) + m.points.capacity() * sizeof(MapPoint);
+  return b + session.map().bytes();
 }
 
 void engine_thread_init() { enable_flush_to_zero(); }

@@ -74,6 +74,7 @@ absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest
   if (r.max_agents() > 0) o.max_agents = r.max_agents();
   if (r.densify_target() < 0) return absl::InvalidArgumentError("densify_target must not be negative");
   o.densify_target = r.densify_target();
+  o.tick_hz = r.tick_hz() == 0 ? 2 : r.tick_hz();  // the engine checks the value
   return o;
 }
 
@@ -159,6 +160,11 @@ void tick_to_proto(const StepResult& s, int64_t tick, pb::Tick* out) {
     o->set_entered(a.entered);
   }
   for (int64_t id : s.left) out->add_left(id);
+}
+
+::grpc::Status to_grpc(const absl::Status& st) {
+  if (st.ok()) return ::grpc::Status::OK;
+  return ::grpc::Status(static_cast<::grpc::StatusCode>(static_cast<int>(st.code())), std::string(st.message()));
 }
 
 }  // namespace ss::server

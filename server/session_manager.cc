@@ -15,13 +15,10 @@ namespace ss::server {
 struct ManagedSession {
   std::string id;
   SessionSource source;
-  int tick_hz = 2;
   int tick_deadline_ms = 0;
 
   std::timed_mutex engine_mu;
-  std::unique_ptr<Session> session;
-  std::map<int64_t, ControlInput> latest_pose;   // 10 Hz: every controller's latest pose
-  std::map<int64_t, ControlInput> step_controls; // 10 Hz: poses since the last model step
+  SessionPtr session;
   std::atomic<uint64_t> bytes{0};
   uint64_t max_tick_growth = 0;                  // the most one tick has added to `bytes` (under engine_mu)
   std::atomic<uint64_t> changes{1};              // counts ticks, injections and forces (1: never saved)
@@ -38,7 +35,8 @@ struct ManagedSession {
   bool stepping = false;
   int64_t failed_tick = -1;
   absl::Status failed_status;
-  std::deque<TickView> recent;                   // the last ticks, for waiting controllers and watchers
+  std::deque<TickView> recent;                   // the last ticks, for waiting controllers
+  std::vector<std::shared_ptr<TickWatcher>> watchers;  // WatchSession streams
   bool closed = false;
 
   void touch() { last_used = Clock::now().time_since_epoch().count(); }
@@ -53,19 +51,10 @@ struct ManagedSession {
       if (a.controlled) controllers.insert(a.id);
     recent.push_back({tick, v});
     while (recent.size() > 64) recent.pop_front();
+    std::erase_if(watchers, [](const auto& w) { return w->done(); });
+    for (const auto& w : watchers) w->on_tick(recent.back());
   }
 };
-
-namespace {
-
-constexpr int kTicksPerStep10Hz = 5;
-
-StepResult view_at(const Session& session, int tick_hz, int64_t tick) {
-  if (tick_hz != 10 || tick % kTicksPerStep10Hz == 0) return session.current();
-  return tick_between_steps(session, static_cast<int>(tick % kTicksPerStep10Hz), kTicksPerStep10Hz, {});
-}
-
-}  // namespace
 
 SessionManager::SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics)
     : engine_(engine), options_(std::move(options)), metrics_(metrics), slots_(std::max(1, options_.compute_threads)) {
@@ -114,13 +103,8 @@ absl::Status SessionManager::save(ManagedSession& s) {
   Snapshot snap;
   snap.session_id = s.id;
   snap.source = s.source;
-  snap.tick_hz = s.tick_hz;
   snap.tick_deadline_ms = s.tick_deadline_ms;
-  {
-    std::lock_guard<std::mutex> l(s.mu);
-    snap.tick = s.tick;
-  }
-  snap.session_bytes = s.session->save();
+  snap.session_bytes = session_save(*s.session);
   const uint64_t changes = s.changes;
   absl::Status st = write_snapshot(options_.snapshot_dir, snap);
   if (st.ok()) s.saved_changes = changes;
@@ -138,6 +122,7 @@ absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>&
     std::lock_guard<std::mutex> l(s->mu);
     s->closed = true;
     s->cv.notify_all();
+    end_watchers_locked(*s);
   }
   sessions_.erase(s->id);
   metrics_.count_eviction();
@@ -179,12 +164,9 @@ absl::Status SessionManager::make_room_locked(uint64_t extra_bytes, int extra_se
 }
 
 absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, const SessionOptions& options,
-                                                int tick_hz, int tick_deadline_ms, const std::string& proposed_id,
+                                                int tick_deadline_ms, const std::string& proposed_id,
                                                 Clock::time_point deadline, std::string* id_out) {
   if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
-  if (tick_hz == 0) tick_hz = 2;
-  if (tick_hz != 2 && tick_hz != 10)
-    return absl::InvalidArgumentError(absl::StrCat("tick_hz ", std::to_string(tick_hz), ": only 2 or 10"));
   if (tick_deadline_ms < 0) return absl::InvalidArgumentError("tick_deadline_ms must not be negative");
   std::string id;
   {
@@ -197,13 +179,12 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   auto s = std::make_shared<ManagedSession>();
   s->id = id;
   s->source = source;
-  s->tick_hz = tick_hz;
   s->tick_deadline_ms = tick_deadline_ms ? tick_deadline_ms : options_.default_tick_deadline_ms;
   absl::Status st = compute(deadline, [&] {
     auto session = session_create(engine_, source, options);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
-    s->bytes = s->session->memory_bytes() + source.womd_bytes.size();
+    s->bytes = session_memory_bytes(engine_, *s->session) + source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return st;
@@ -211,7 +192,7 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   TickView out;
   {
     std::lock_guard<std::mutex> l(s->mu);
-    s->publish(s->session->current());
+    s->publish(session_view(*s->session));
     out = s->recent.back();
   }
   {
@@ -223,7 +204,7 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   }
   spdlog::info("session {}: created on {} ({} mode, seed {}, {} Hz, {} agents, {} bytes)", id,
                source.scenario_name.empty() ? std::string("client-sent scenario") : source.scenario_name,
-               session_mode_name(options.mode), options.seed, tick_hz, out.view.agents.size(), s->bytes.load());
+               session_mode_name(options.mode), options.seed, options.tick_hz, out.view.agents.size(), s->bytes.load());
   *id_out = id;
   return out;
 }
@@ -266,21 +247,20 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_snapshot
   auto s = std::make_shared<ManagedSession>();
   s->id = snap->session_id;
   s->source = snap->source;
-  s->tick_hz = snap->tick_hz;
   s->tick_deadline_ms = snap->tick_deadline_ms;
   absl::Status st = compute(deadline, [&] {
     auto session = session_restore(engine_, snap->source, snap->session_bytes);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
-    s->bytes = s->session->memory_bytes() + s->source.womd_bytes.size();
+    s->bytes = session_memory_bytes(engine_, *s->session) + s->source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return absl::Status(st.code(), absl::StrCat("snapshot ", path, ": ", std::string(st.message())));
   s->touch();
   s->saved_changes = s->changes;  // its snapshot is on disk already
   std::lock_guard<std::mutex> l(s->mu);
-  s->tick = snap->tick;
-  s->publish(view_at(*s->session, s->tick_hz, s->tick));
+  s->tick = session_tick_index(*s->session);
+  s->publish(session_view(*s->session));
   return s;
 }
 
@@ -307,26 +287,9 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
     // another session waits for one tick rather than for all of them.
     absl::Status st = compute(deadline, [&]() -> absl::Status {
       const auto t0 = Clock::now();
-      if (s.tick_hz == 2) {
-        auto r = s.session->step(controls_now);
-        if (!r.ok()) return r.status();
-        view = std::move(*r);
-      } else {
-        for (const ControlInput& c : controls_now) s.latest_pose[c.agent_id] = s.step_controls[c.agent_id] = c;
-        const int sub = static_cast<int>((tick + 1) % kTicksPerStep10Hz);
-        if (sub == 0) {
-          std::vector<ControlInput> at_step;
-          for (const auto& [id, c] : s.step_controls) at_step.push_back(c);
-          auto r = s.session->step(at_step);
-          if (!r.ok()) return r.status();
-          s.step_controls.clear();
-          view = std::move(*r);
-        } else {
-          std::vector<ControlInput> pushed;
-          for (const auto& [id, c] : s.latest_pose) pushed.push_back(c);
-          view = tick_between_steps(*s.session, sub, kTicksPerStep10Hz, pushed);
-        }
-      }
+      auto r = session_tick(*s.session, controls_now);
+      if (!r.ok()) return r.status();
+      view = std::move(*r);
       metrics_.count_step(std::chrono::duration<double>(Clock::now() - t0).count());
       return absl::OkStatus();
     });
@@ -336,10 +299,10 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
                                                   std::to_string(n), " ticks; the session is at tick ",
                                                   std::to_string(tick), ")"));
     }
-    ++tick;
+    tick = session_tick_index(*s.session);
     ++s.changes;
     const uint64_t before = s.bytes;
-    s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
+    s.bytes = session_memory_bytes(engine_, *s.session) + s.source.womd_bytes.size();
     if (s.bytes > before) s.max_tick_growth = std::max(s.max_tick_growth, s.bytes - before);
     std::lock_guard<std::mutex> l(s.mu);
     s.tick = tick;
@@ -458,16 +421,16 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
   std::vector<int64_t> ids;
   absl::Status st = compute(deadline, [&] {
-    auto r2 = s.session->inject(r);
+    auto r2 = session_inject(*s.session, r);
     if (!r2.ok()) return r2.status();
     ++s.changes;
     ids = *r2;
-    s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
+    s.bytes = session_memory_bytes(engine_, *s.session) + s.source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return st;
   std::lock_guard<std::mutex> l(s.mu);
-  s.view = view_at(*s.session, s.tick_hz, s.tick);
+  s.view = session_view(*s.session);
   return ids;
 }
 
@@ -480,7 +443,7 @@ absl::Status SessionManager::state_force(const std::string& id, const StateForce
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
-  absl::Status st = s.session->state_force(r);
+  absl::Status st = session_force(*s.session, r);
   if (st.ok()) ++s.changes;
   return st;
 }
@@ -505,6 +468,7 @@ absl::Status SessionManager::close(const std::string& id) {
     std::lock_guard<std::mutex> l(s->mu);
     s->closed = true;
     s->cv.notify_all();
+    end_watchers_locked(*s);
     spdlog::info("session {}: closed at tick {}", id, s->tick);
   }
   // A background save running now checks `closed` after writing and removes its file too.
@@ -516,8 +480,8 @@ static SessionInfo info_of(ManagedSession& s) {
   SessionInfo i;
   i.id = s.id;
   i.scenario_name = s.source.scenario_name;
-  i.options = s.session->options();  // immutable after create
-  i.tick_hz = s.tick_hz;
+  i.options = session_options(*s.session);  // immutable after create
+  i.tick_hz = i.options.tick_hz;
   i.memory_bytes = s.bytes;
   i.idle_seconds = s.idle_seconds();
   std::lock_guard<std::mutex> l(s.mu);
@@ -564,18 +528,15 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   auto f = std::make_shared<ManagedSession>();
   f->id = nid;
   f->source = s.source;
-  f->tick_hz = s.tick_hz;
   f->tick_deadline_ms = s.tick_deadline_ms;
   {
     std::unique_lock<std::timed_mutex> e(s.engine_mu, std::defer_lock);
     if (!e.try_lock_until(deadline)) return absl::DeadlineExceededError("the session stayed busy past the deadline");
     absl::Status st = compute(deadline, [&] {
-      f->session = s.session->fork();
+      f->session = session_fork(*s.session);
       return absl::OkStatus();
     });
     if (!st.ok()) return st;
-    f->latest_pose = s.latest_pose;
-    f->step_controls = s.step_controls;
     f->bytes = s.bytes.load();
     std::lock_guard<std::mutex> l(s.mu);
     f->tick = s.tick;
@@ -593,34 +554,38 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   return nid;
 }
 
-absl::Status SessionManager::watch(const std::string& id, const std::function<bool(const TickView&)>& send,
-                                   const std::function<bool()>& cancelled) {
+absl::Status SessionManager::watch_add(const std::string& id, std::shared_ptr<TickWatcher> w) {
+  if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new watch streams");
   auto found = find(id, Clock::now() + std::chrono::seconds(30));
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
-  int64_t next;
-  TickView first;
-  {
-    std::lock_guard<std::mutex> l(s.mu);
-    first = {s.tick, s.view};
-    next = s.tick + 1;
+  if (++watchers_ > options_.max_watchers) {
+    --watchers_;
+    return absl::ResourceExhaustedError(absl::StrCat("--max_watchers=", std::to_string(options_.max_watchers),
+                                                     " watch streams are open: close one first"));
   }
-  if (!send(first)) return absl::OkStatus();
-  while (!cancelled() && !draining_) {
-    std::vector<TickView> batch;
-    {
-      std::unique_lock<std::mutex> l(s.mu);
-      s.cv.wait_for(l, std::chrono::milliseconds(200), [&] { return s.closed || s.tick >= next; });
-      for (const TickView& t : s.recent)
-        if (t.tick >= next) batch.push_back(t);
-      if (batch.empty() && s.closed) return absl::OkStatus();
-    }
-    for (const TickView& t : batch) {
-      if (!send(t)) return absl::OkStatus();
-      next = t.tick + 1;
-    }
+  std::lock_guard<std::mutex> l(s.mu);
+  if (s.closed) {
+    --watchers_;
+    return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
   }
+  s.watchers.push_back(w);
+  w->on_tick({s.tick, s.view});
   return absl::OkStatus();
+}
+
+void SessionManager::start_draining() {
+  draining_ = true;
+  std::lock_guard<std::mutex> l(mu_);
+  for (const auto& [id, s] : sessions_) {
+    std::lock_guard<std::mutex> sl(s->mu);
+    end_watchers_locked(*s);
+  }
+}
+
+void SessionManager::end_watchers_locked(ManagedSession& s) {
+  for (const auto& w : s.watchers) w->on_end();
+  s.watchers.clear();
 }
 
 int SessionManager::save_all() {

@@ -34,6 +34,7 @@ struct ManagerOptions {
   double evict_idle_s = 30;          // a session unused this long may be evicted (LRU) to make room
   int compute_threads = 2;           // engine calls running at once
   int default_tick_deadline_ms = 2000;
+  int max_watchers = 1024;           // WatchSession streams open at once, over all sessions
 };
 
 struct SessionInfo {
@@ -56,13 +57,26 @@ struct TickView {
 
 struct ManagedSession;
 
+// Receives one session's ticks as they are computed (a WatchSession stream), with no thread of its own. The manager
+// calls it with its locks held, so it must not block or call the manager back; it may call gRPC (whose reactions
+// may run inline, so the watcher's own lock must allow that).
+class TickWatcher {
+ public:
+  virtual ~TickWatcher() = default;
+  // A tick, the current one first.
+  virtual void on_tick(const TickView& t) = 0;
+  // No more ticks: the session closed or was evicted, or the server drains.
+  virtual void on_end() = 0;
+  // True once the stream is over (the manager then drops it).
+  virtual bool done() const = 0;
+};
+
 class SessionManager {
  public:
   SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics);
   ~SessionManager();
 
-  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_hz,
-                                  int tick_deadline_ms, const std::string& proposed_id, Clock::time_point deadline,
+  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_deadline_ms, const std::string& proposed_id, Clock::time_point deadline,
                                   std::string* id);
   // One call's ticks. In a multi-client session the caller waits for the other controllers (or the tick deadline).
   absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::vector<ControlInput>& controls,
@@ -75,12 +89,15 @@ class SessionManager {
   absl::StatusOr<std::string> fork(const std::string& id, const std::string& proposed_id,
                                    Clock::time_point deadline);
   std::vector<SessionInfo> list();
-  // Calls `send` with every tick from the current one on until the session closes, the server drains, `send`
-  // returns false or `cancelled` returns true.
-  absl::Status watch(const std::string& id, const std::function<bool(const TickView&)>& send,
-                     const std::function<bool()>& cancelled);
+  // Registers `w` for every tick of session `id` from the current one on (given to it before this returns), until
+  // on_end() or w->done(). RESOURCE_EXHAUSTED beyond --max_watchers streams not yet done.
+  absl::Status watch_add(const std::string& id, std::shared_ptr<TickWatcher> w);
+  // A stream registered by watch_add is over (its place under --max_watchers is free again). Takes no lock.
+  void watch_done() { --watchers_; }
+  int watchers() const { return watchers_; }
 
-  void start_draining() { draining_ = true; }
+  // Refuses new work and ends every watch stream.
+  void start_draining();
   bool draining() const { return draining_; }
   // Saves every session to the snapshot directory (after the gRPC server stopped).
   int save_all();
@@ -108,6 +125,8 @@ class SessionManager {
   // Saves every session that changed since its last snapshot (the background snapshots).
   void save_changed();
   bool evicted_contains(const std::string& id);
+  // Ends and drops the watchers of `s`. Holds s.mu.
+  void end_watchers_locked(ManagedSession& s);
   // Closes idle sessions and writes the background snapshots.
   void reaper();
 
@@ -119,6 +138,7 @@ class SessionManager {
   std::map<std::string, std::shared_ptr<ManagedSession>> sessions_;
   std::set<std::string> evicted_;  // saved to the snapshot directory, restored on their next call
   std::atomic<bool> draining_{false};
+  std::atomic<int> watchers_{0};
   std::atomic<bool> stop_{false};
   std::thread reaper_;
 };

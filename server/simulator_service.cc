@@ -1,15 +1,15 @@
 #include "server/simulator_service.h"
 
+#include <atomic>
+#include <deque>
+#include <memory>
+#include <mutex>
+
 #include "absl/strings/str_cat.h"
 #include "spdlog/spdlog.h"
 
 namespace ss::server {
 namespace {
-
-::grpc::Status to_grpc(const absl::Status& st) {
-  if (st.ok()) return ::grpc::Status::OK;
-  return ::grpc::Status(static_cast<::grpc::StatusCode>(static_cast<int>(st.code())), std::string(st.message()));
-}
 
 void info_to_proto(const SessionInfo& i, pb::SessionInfo* o) {
   o->set_session_id(i.id);
@@ -66,7 +66,7 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
     return finish("CreateSession", r->session_id(),
                   absl::InvalidArgumentError("scenario: scenario_name or womd_scenario is empty"));
   std::string id;
-  auto t = sessions_.create(source, *options, r->tick_hz(), r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
+  auto t = sessions_.create(source, *options, r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
   if (!t.ok()) return finish("CreateSession", r->session_id(), t.status());
   out->set_session_id(id);
   tick_to_proto(t->view, t->tick, out->mutable_initial());
@@ -138,17 +138,100 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   return finish("ListSessions", "-", absl::OkStatus());
 }
 
-::grpc::Status SimulatorService::WatchSession(Ctx* ctx, const pb::WatchSessionRequest* r,
-                                              ::grpc::ServerWriter<pb::Tick>* writer) {
-  auto st = sessions_.watch(
-      r->session_id(),
-      [&](const TickView& t) {
-        pb::Tick tick;
-        tick_to_proto(t.view, t.tick, &tick);
-        return writer->Write(tick);
-      },
-      [&] { return ctx->IsCancelled(); });
-  return finish("WatchSession", r->session_id(), st);
+namespace {
+
+// One WatchSession stream: ticks queue here as the session computes them and are written one at a time. A watcher
+// that reads slower than the session steps loses the oldest queued ticks beyond kMaxQueued, as a watcher of the
+// old thread-per-stream loop did beyond the session's recent ticks. The lock is recursive because gRPC may run
+// OnWriteDone inline from StartWrite; the manager holds a reference while it calls in, and `self_` keeps the
+// reactor alive until OnDone.
+class WatchReactor final : public ::grpc::ServerWriteReactor<pb::Tick>, public TickWatcher {
+ public:
+  static std::shared_ptr<WatchReactor> make(SessionManager& sessions) {
+    auto r = std::shared_ptr<WatchReactor>(new WatchReactor(sessions));
+    r->self_ = r;
+    return r;
+  }
+
+  void on_tick(const TickView& t) override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    if (finished_ || t.tick <= last_tick_) return;
+    last_tick_ = t.tick;
+    if (queue_.size() >= kMaxQueued) queue_.erase(queue_.begin() + 1);  // the front may be being written
+    tick_to_proto(t.view, t.tick, &queue_.emplace_back());
+    if (!writing_) {
+      writing_ = true;
+      StartWrite(&queue_.front());
+    }
+  }
+  void on_end() override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    ended_ = true;
+    if (!writing_) finish_locked(::grpc::Status::OK);
+  }
+  bool done() const override { return done_; }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    writing_ = false;
+    queue_.pop_front();
+    if (!ok) return finish_locked(::grpc::Status(::grpc::StatusCode::CANCELLED, "the stream broke"));
+    if (!queue_.empty() && !finished_) {
+      writing_ = true;
+      StartWrite(&queue_.front());
+    } else if (ended_) {
+      finish_locked(::grpc::Status::OK);
+    }
+  }
+  void OnCancel() override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    finish_locked(::grpc::Status::CANCELLED);
+  }
+  void OnDone() override {
+    if (registered_) sessions_.watch_done();
+    done_ = true;
+    auto last_reference = std::move(self_);  // may free this reactor when the function returns
+  }
+  void registered() { registered_ = true; }
+  void fail(const ::grpc::Status& st) {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    finish_locked(st);
+  }
+
+ private:
+  explicit WatchReactor(SessionManager& sessions) : sessions_(sessions) {}
+  static constexpr size_t kMaxQueued = 64;
+  void finish_locked(const ::grpc::Status& st) {
+    if (finished_) return;
+    finished_ = true;
+    Finish(st);
+  }
+
+  SessionManager& sessions_;
+  std::shared_ptr<WatchReactor> self_;
+  std::recursive_mutex mu_;
+  std::deque<pb::Tick> queue_;  // front: being written when writing_
+  int64_t last_tick_ = -1;
+  bool writing_ = false;
+  bool ended_ = false;
+  bool finished_ = false;
+  bool registered_ = false;
+  std::atomic<bool> done_{false};
+};
+
+}  // namespace
+
+::grpc::ServerWriteReactor<pb::Tick>* SimulatorService::WatchSession(::grpc::CallbackServerContext*,
+                                                                   const pb::WatchSessionRequest* r) {
+  auto reactor = WatchReactor::make(sessions_);
+  const absl::Status st = sessions_.watch_add(r->session_id(), reactor);
+  if (st.ok()) {
+    reactor->registered();
+    metrics_.count_call("WatchSession");
+  } else {
+    reactor->fail(finish("WatchSession", r->session_id(), st));
+  }
+  return reactor.get();
 }
 
 }  // namespace ss::server

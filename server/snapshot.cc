@@ -11,9 +11,10 @@
 namespace ss::server {
 namespace {
 
-// The format's magic and version: SSSNAP01 had no checksum and is refused with both versions named.
+// The format's magic and version, refused with both versions named when they differ. SSSNAP01 had no checksum;
+// SSSNAP02 kept the tick clock here (now the engine's state holds it).
 constexpr char kMagicPrefix[] = "SSSNAP";
-constexpr char kMagic[] = "SSSNAP02";
+constexpr char kMagic[] = "SSSNAP03";
 constexpr char kSuffix[] = ".snapshot";
 
 void put_u64(std::string& out, uint64_t v) {
@@ -64,9 +65,7 @@ absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   put_str(out, s.session_id);
   put_str(out, s.source.scenario_name);
   put_str(out, s.source.womd_bytes);
-  put_u64(out, static_cast<uint64_t>(s.tick_hz));
   put_u64(out, static_cast<uint64_t>(s.tick_deadline_ms));
-  put_u64(out, static_cast<uint64_t>(s.tick));
   put_str(out, s.session_bytes);
   put_u64(out, fnv1a64(out));
   std::error_code ec;
@@ -87,8 +86,7 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   if (std::memcmp(in.data(), kMagic, 8) != 0)
     return absl::FailedPreconditionError(absl::StrCat("snapshot ", *path, ": format ", in.substr(0, 8),
                                                       " is not this server's ", kMagic,
-                                                      " (older snapshots carry no checksum); the session cannot be "
-                                                      "restored by this version"));
+                                                      "; the session cannot be restored by this version"));
   if (in.size() < 16) return bad("truncated (no checksum)");
   const uint64_t stored = get_u64(in.data() + in.size() - 8);
   const uint64_t actual = fnv1a64(std::string_view(in.data(), in.size() - 8));
@@ -97,19 +95,15 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
                                "corrupt", stored, in.size() - 8, actual));
   Reader r{in, in.size() - 8, 8};
   Snapshot s;
-  uint64_t hz, deadline, tick;
-  if (!r.str(&s.session_id) || !r.str(&s.source.scenario_name) || !r.str(&s.source.womd_bytes) || !r.u64(&hz) ||
-      !r.u64(&deadline) || !r.u64(&tick) || !r.str(&s.session_bytes) || r.pos != r.end)
+  uint64_t deadline;
+  if (!r.str(&s.session_id) || !r.str(&s.source.scenario_name) || !r.str(&s.source.womd_bytes) ||
+      !r.u64(&deadline) || !r.str(&s.session_bytes) || r.pos != r.end)
     return bad("fields truncated or trailing bytes");
   if (s.session_id != session_id)
     return bad(absl::StrCat("holds session ", echo_id(s.session_id), ", not the ", echo_id(session_id),
                             " its name says"));
-  if (hz != 2 && hz != 10) return bad(absl::StrCat("tick_hz ", std::to_string(hz), " (only 2 or 10)"));
   if (deadline > 3'600'000) return bad(absl::StrCat("tick_deadline_ms ", std::to_string(deadline)));
-  if (tick > (uint64_t{1} << 40)) return bad(absl::StrCat("tick ", std::to_string(tick)));
-  s.tick_hz = static_cast<int>(hz);
   s.tick_deadline_ms = static_cast<int>(deadline);
-  s.tick = static_cast<int64_t>(tick);
   return s;
 }
 

@@ -1,5 +1,5 @@
-// A session's snapshot file: what the server adds around Session::save() bytes (the scenario source, the tick
-// clock), so a restarted or evicted session continues exactly where it was. The file is named after the session id
+// A session's snapshot file: what the server adds around Session::save() bytes (the scenario source, the
+// multi-client tick deadline), so a restarted or evicted session continues exactly where it was. The file is named after the session id
 // (checked against the id rule, never taken from inside a file), ends with an FNV-1a checksum of everything before it
 // (a flipped bit is refused, not restored), and is written through a temporary file renamed into place, so a crash
 // never leaves half a snapshot.
@@ -17,10 +17,8 @@ namespace ss::server {
 struct Snapshot {
   std::string session_id;
   SessionSource source;
-  int tick_hz = 2;
   int tick_deadline_ms = 0;
-  int64_t tick = 0;
-  std::string session_bytes;  // Session::save()
+  std::string session_bytes;  // Session::save(): the engine's state, its tick clock included
 };
 
 // INVALID_ARGUMENT for an id that breaks the session id rule (so no id names a file outside `dir`).
