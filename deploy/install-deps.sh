@@ -8,7 +8,7 @@ PACKAGES="
   build-essential cmake ninja-build pkg-config git
   clang libclang-rt-14-dev
   protobuf-compiler libprotobuf-dev
-  libgrpc++-dev libgrpc-dev protobuf-compiler-grpc
+  libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libssl-dev openssl
   libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-grpcio python3-protobuf

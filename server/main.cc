@@ -11,12 +11,16 @@
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "server/auth.h"
 #include "server/metrics.h"
 #include "server/session_manager.h"
 #include "server/simulator_service.h"
+#include "server/tls.h"
 #include "spdlog/spdlog.h"
 
-ABSL_FLAG(std::string, host, "0.0.0.0", "Address to listen on (tests use 127.0.0.1)");
+ABSL_FLAG(std::string, host, "127.0.0.1",
+          "Address to listen on. Loopback by default: pass --host=0.0.0.0 to serve other machines (the image and the "
+          "manifests in deploy/ do, on purpose), ideally with --tls_cert/--tls_key and --tokens_file");
 ABSL_FLAG(int, port, 50051, "gRPC port (0: pick a free one; the chosen port is logged)");
 ABSL_FLAG(std::string, model, "",
           "Model weights (safetensors); empty: the first models/*.safetensors, else random weights");
@@ -44,6 +48,17 @@ ABSL_FLAG(double, drain_grace_s, 1.0,
           "On SIGTERM, keep answering at least this long (health NOT_SERVING, new calls UNAVAILABLE) so clients and "
           "load balancers see the drain rather than a closed connection");
 ABSL_FLAG(std::string, log_level, "info", "trace, debug, info, warn, error");
+ABSL_FLAG(std::string, tls_cert, "", "PEM certificate chain: serve gRPC over TLS (with --tls_key)");
+ABSL_FLAG(std::string, tls_key, "", "PEM private key of --tls_cert");
+ABSL_FLAG(std::string, tls_client_ca, "",
+          "PEM CA bundle: with it, clients must present a certificate this CA signed (mutual TLS)");
+ABSL_FLAG(std::string, tokens_file, "",
+          "Bearer-token authentication: a file of `TOKEN TENANT` lines (README, Server); every call then needs "
+          "`authorization: Bearer TOKEN`, and a tenant sees only its own sessions. Empty: no authentication");
+ABSL_FLAG(int, health_port, -1,
+          "Also serve grpc.health.v1.Health alone, plaintext and without tokens, on --health_host:PORT (for probes "
+          "that cannot do TLS, like Kubernetes' gRPC probes; -1: off, 0: a free port)");
+ABSL_FLAG(std::string, health_host, "127.0.0.1", "Address of --health_port");
 
 namespace {
 
@@ -130,13 +145,30 @@ int main(int argc, char** argv) {
       spdlog::warn("metrics off: {}", std::string(metrics_port.status().message()));
   }
 
-  ss::server::SimulatorService service(**engine, sessions, metrics, absl::GetFlag(FLAGS_call_deadline_s));
+  auto credentials = ss::server::server_credentials(
+      {absl::GetFlag(FLAGS_tls_cert), absl::GetFlag(FLAGS_tls_key), absl::GetFlag(FLAGS_tls_client_ca)});
+  if (!credentials.ok()) {
+    spdlog::critical("cannot start: {}", std::string(credentials.status().message()));
+    return 1;
+  }
+  std::unique_ptr<ss::server::TokenAuth> auth;
+  if (!absl::GetFlag(FLAGS_tokens_file).empty()) {
+    auto loaded = ss::server::TokenAuth::load(absl::GetFlag(FLAGS_tokens_file));
+    if (!loaded.ok()) {
+      spdlog::critical("cannot start: {}", std::string(loaded.status().message()));
+      return 1;
+    }
+    auth = std::move(*loaded);
+    spdlog::info("bearer-token authentication: {} tokens from {}", auth->size(), absl::GetFlag(FLAGS_tokens_file));
+  }
+
+  ss::server::SimulatorService service(**engine, sessions, metrics, absl::GetFlag(FLAGS_call_deadline_s), auth.get());
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   int port = 0;
   const std::string address = absl::GetFlag(FLAGS_host) + ":" + std::to_string(absl::GetFlag(FLAGS_port));
-  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(address, *credentials, &port);
   builder.SetMaxReceiveMessageSize(max_message);
   builder.SetMaxSendMessageSize(max_message);
   builder.RegisterService(&service);
@@ -145,14 +177,35 @@ int main(int argc, char** argv) {
     spdlog::critical("cannot listen on {}", address);
     return 1;
   }
+  // The health-only server: its own port, no TLS, no tokens; the same status as the main port's health service.
+  std::unique_ptr<grpc::Server> health_server;
+  if (absl::GetFlag(FLAGS_health_port) >= 0) {
+    grpc::ServerBuilder hb;
+    int health_port = 0;
+    const std::string health_address =
+        absl::GetFlag(FLAGS_health_host) + ":" + std::to_string(absl::GetFlag(FLAGS_health_port));
+    hb.AddListeningPort(health_address, grpc::InsecureServerCredentials(), &health_port);
+    health_server = hb.BuildAndStart();
+    if (!health_server || health_port == 0) {
+      spdlog::critical("cannot listen on {} (--health_port)", health_address);
+      return 1;
+    }
+    health_server->GetHealthCheckService()->SetServingStatus(true);
+    spdlog::info("health (plaintext, no tokens) on {}:{}", absl::GetFlag(FLAGS_health_host), health_port);
+  }
   server->GetHealthCheckService()->SetServingStatus(true);
-  spdlog::info("serving scenestreamer.v1.Simulator on {}:{} ({} compute threads)", absl::GetFlag(FLAGS_host), port,
-               mo.compute_threads);
+  spdlog::info("serving scenestreamer.v1.Simulator on {}:{} ({}, {}, {} compute threads)", absl::GetFlag(FLAGS_host),
+               port,
+               absl::GetFlag(FLAGS_tls_cert).empty()           ? "plaintext"
+               : absl::GetFlag(FLAGS_tls_client_ca).empty()    ? "TLS"
+                                                               : "mutual TLS",
+               auth ? "bearer tokens" : "no authentication", mo.compute_threads);
 
   int sig = 0;
   sigwait(&signals, &sig);
   spdlog::info("signal {}: draining (health NOT_SERVING, no new sessions, finishing calls in flight)", sig);
   server->GetHealthCheckService()->SetServingStatus(false);
+  if (health_server) health_server->GetHealthCheckService()->SetServingStatus(false);
   sessions.start_draining();
   // Calls in flight finish while the server still answers (new ones get UNAVAILABLE from the handlers).
   const auto drain_start = std::chrono::steady_clock::now();
@@ -164,6 +217,10 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(30));
   server->Wait();
+  if (health_server) {
+    health_server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+    health_server->Wait();
+  }
   const int saved = sessions.save_all();
   if (!mo.snapshot_dir.empty()) spdlog::info("saved {} sessions to {}", saved, mo.snapshot_dir);
   spdlog::info("stopped");

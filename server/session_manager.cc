@@ -9,11 +9,20 @@
 #include "spdlog/spdlog.h"
 
 namespace ss::server {
+namespace {
+
+// The one answer for an id the caller cannot see: unknown, closed, or another tenant's.
+absl::Status not_found(const std::string& id) {
+  return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
+}
+
+}  // namespace
 
 // One hosted session. `engine_mu` serialises engine calls on `session`; `mu` guards the tick clock, the multi-client
 // barrier and the recent ticks (held only briefly, never across an engine call).
 struct ManagedSession {
   std::string id;
+  std::string tenant;                            // the owner (server/auth.h); immutable
   SessionSource source;
   int tick_deadline_ms = 0;
 
@@ -30,6 +39,7 @@ struct ManagedSession {
   int64_t tick = 0;
   StepResult view;
   std::set<int64_t> controllers;                 // controlled agents alive: each may have its own client
+  std::map<int64_t, std::string> controller_of;  // agent -> its controller's credential (JoinSession)
   std::map<int64_t, ControlInput> pending;       // poses for tick + 1
   std::optional<Clock::time_point> pending_since;
   bool stepping = false;
@@ -104,6 +114,11 @@ absl::Status SessionManager::save(ManagedSession& s) {
   snap.session_id = s.id;
   snap.source = s.source;
   snap.tick_deadline_ms = s.tick_deadline_ms;
+  snap.tenant = s.tenant;
+  {
+    std::lock_guard<std::mutex> l(s.mu);
+    snap.controllers.assign(s.controller_of.begin(), s.controller_of.end());
+  }
   snap.session_bytes = session_save(*s.session);
   const uint64_t changes = s.changes;
   absl::Status st = write_snapshot(options_.snapshot_dir, snap);
@@ -116,7 +131,7 @@ absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>&
   if (!e.owns_lock()) return absl::AbortedError("busy");
   if (!options_.snapshot_dir.empty()) {
     if (auto st = save(*s); !st.ok()) return st;
-    evicted_.insert(s->id);
+    evicted_[s->id] = s->tenant;
   }
   {
     std::lock_guard<std::mutex> l(s->mu);
@@ -163,9 +178,10 @@ absl::Status SessionManager::make_room_locked(uint64_t extra_bytes, int extra_se
   return absl::OkStatus();
 }
 
-absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, const SessionOptions& options,
-                                                int tick_deadline_ms, const std::string& proposed_id,
-                                                Clock::time_point deadline, std::string* id_out) {
+absl::StatusOr<TickView> SessionManager::create(const std::string& tenant, const SessionSource& source,
+                                                const SessionOptions& options, int tick_deadline_ms,
+                                                const std::string& proposed_id, Clock::time_point deadline,
+                                                std::string* id_out) {
   if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
   if (tick_deadline_ms < 0) return absl::InvalidArgumentError("tick_deadline_ms must not be negative");
   std::string id;
@@ -178,6 +194,7 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   }
   auto s = std::make_shared<ManagedSession>();
   s->id = id;
+  s->tenant = tenant;
   s->source = source;
   s->tick_deadline_ms = tick_deadline_ms ? tick_deadline_ms : options_.default_tick_deadline_ms;
   absl::Status st = compute(deadline, [&] {
@@ -209,17 +226,18 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   return out;
 }
 
-absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::find(const std::string& id,
+absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::find(const std::string& id, const std::string& tenant,
                                                                      Clock::time_point deadline) {
   {
     std::lock_guard<std::mutex> l(mu_);
     auto it = sessions_.find(id);
     if (it != sessions_.end()) {
+      if (it->second->tenant != tenant) return not_found(id);  // not touched either: it is not the caller's
       it->second->touch();
       return it->second;
     }
-    if (!evicted_.count(id))
-      return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
+    auto ev = evicted_.find(id);
+    if (ev == evicted_.end() || ev->second != tenant) return not_found(id);
     if (draining_) return absl::UnavailableError("the server is draining: evicted sessions are not restored now");
   }
   // Evicted earlier: bring it back from its snapshot.
@@ -227,7 +245,11 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::find(const std::
   if (!s.ok()) return s.status();
   std::lock_guard<std::mutex> l(mu_);
   auto it = sessions_.find(id);
-  if (it != sessions_.end()) return it->second;  // another call restored it first
+  if (it != sessions_.end()) {  // another call restored it first
+    if (it->second->tenant != tenant) return not_found(id);
+    return it->second;
+  }
+  if ((*s)->tenant != tenant) return not_found(id);  // the snapshot says otherwise than evicted_ did
   // A CloseSession while the snapshot was being read won: the session stays closed.
   if (!evicted_.count(id))
     return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " was closed while it was being restored"));
@@ -243,13 +265,19 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_snapshot
                                                                                  Clock::time_point deadline) {
   auto snap = read_snapshot(options_.snapshot_dir, id);
   if (!snap.ok()) return snap.status();
-  const std::string path = *snapshot_path(options_.snapshot_dir, id);
+  return restore_from(std::move(*snap), deadline);
+}
+
+absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_from(Snapshot snap,
+                                                                             Clock::time_point deadline) {
+  const std::string path = *snapshot_path(options_.snapshot_dir, snap.session_id);
   auto s = std::make_shared<ManagedSession>();
-  s->id = snap->session_id;
-  s->source = snap->source;
-  s->tick_deadline_ms = snap->tick_deadline_ms;
+  s->id = snap.session_id;
+  s->tenant = snap.tenant;
+  s->source = snap.source;
+  s->tick_deadline_ms = snap.tick_deadline_ms;
   absl::Status st = compute(deadline, [&] {
-    auto session = session_restore(engine_, snap->source, snap->session_bytes);
+    auto session = session_restore(engine_, snap.source, snap.session_bytes);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
     s->bytes = session_memory_bytes(engine_, *s->session) + s->source.womd_bytes.size();
@@ -260,12 +288,14 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_snapshot
   s->saved_changes = s->changes;  // its snapshot is on disk already
   std::lock_guard<std::mutex> l(s->mu);
   s->tick = session_tick_index(*s->session);
+  s->controller_of.insert(snap.controllers.begin(), snap.controllers.end());
   s->publish(session_view(*s->session));
   return s;
 }
 
 absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
-                                       Clock::time_point deadline, std::vector<TickView>* out) {
+                                       Clock::time_point deadline, const std::function<bool()>& cancelled,
+                                       std::vector<TickView>* out) {
   int64_t tick;
   {
     std::lock_guard<std::mutex> l(s.mu);
@@ -275,6 +305,16 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
   for (int i = 0; i < n; ++i) {
     // The poses are for the first tick; later ticks of the call keep the controlled agents' last control.
     const std::vector<ControlInput>& controls_now = i == 0 ? controls : none;
+    // Between the ticks of a long call: a client that is gone or out of time gets no more (a slot free at once
+    // would otherwise keep computing ticks no one reads). The first tick always runs: in a multi-client session it
+    // is every controller's tick, not only this caller's.
+    if (i > 0 && (Clock::now() >= deadline || (cancelled && cancelled()))) {
+      const bool late = Clock::now() >= deadline;
+      return absl::Status(late ? absl::StatusCode::kDeadlineExceeded : absl::StatusCode::kCancelled,
+                          absl::StrCat(late ? "the call's deadline passed" : "the client cancelled the call",
+                                       " after ", std::to_string(i), " of ", std::to_string(n),
+                                       " ticks; the session is at tick ", std::to_string(tick)));
+    }
     // The cache cap holds as sessions grow: room for the largest growth of one tick seen so far, before the tick.
     if (auto st = room_to_grow(s); !st.ok()) {
       if (i == 0) return st;
@@ -304,6 +344,7 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
     const uint64_t before = s.bytes;
     s.bytes = session_memory_bytes(engine_, *s.session) + s.source.womd_bytes.size();
     if (s.bytes > before) s.max_tick_growth = std::max(s.max_tick_growth, s.bytes - before);
+    s.touch();  // a long call keeps its session in use: the idle rule must not close it between two ticks
     std::lock_guard<std::mutex> l(s.mu);
     s.tick = tick;
     s.publish(view);
@@ -322,12 +363,14 @@ absl::Status SessionManager::room_to_grow(ManagedSession& s) {
       " more a tick) has no room to grow: ", st.message()));
 }
 
-absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id,
+absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id, const std::string& tenant,
+                                                           const std::string& credential,
                                                            const std::vector<ControlInput>& controls, int num_ticks,
-                                                           Clock::time_point deadline) {
+                                                           Clock::time_point deadline,
+                                                           const std::function<bool()>& cancelled) {
   if (draining_)
     return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
-  auto found = find(id, deadline);
+  auto found = find(id, tenant, deadline);
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
   if (num_ticks == 0) num_ticks = 1;
@@ -340,6 +383,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
       return absl::InvalidArgumentError(absl::StrCat("poses[", std::to_string(i), "].agent_id ",
                                                      std::to_string(controls[i].agent_id),
                                                      " is not a controlled agent of session '", id, "'"));
+  if (auto st = check_controller_locked(s, credential, controls, "poses", "send its poses"); !st.ok()) return st;
   if (num_ticks > 1 && s.controllers.size() > 1)
     return absl::InvalidArgumentError("num_ticks > 1 is only for sessions with at most one controlled agent");
   if (s.stepping)
@@ -380,7 +424,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
         if (!e.try_lock_until(deadline))
           st = absl::DeadlineExceededError("the call's deadline passed while the session was busy");
         else
-          st = run_ticks(s, taken, num_ticks, deadline, &out);
+          st = run_ticks(s, taken, num_ticks, deadline, cancelled, &out);
       }
       l.lock();
       s.stepping = false;
@@ -409,11 +453,11 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
   return out;
 }
 
-absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& id, const InjectRequest& r,
-                                                            Clock::time_point deadline) {
+absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& id, const std::string& tenant,
+                                                            const InjectRequest& r, Clock::time_point deadline) {
   if (draining_)
     return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
-  auto found = find(id, deadline);
+  auto found = find(id, tenant, deadline);
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
@@ -434,12 +478,23 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
   return ids;
 }
 
-absl::Status SessionManager::state_force(const std::string& id, const StateForceRequest& r) {
+absl::Status SessionManager::state_force(const std::string& id, const std::string& tenant,
+                                         const std::string& credential, const StateForceRequest& r) {
   if (draining_)
     return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
-  auto found = find(id, Clock::now() + std::chrono::seconds(30));
+  auto found = find(id, tenant, Clock::now() + std::chrono::seconds(30));
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
+  {
+    std::vector<ControlInput> forced;
+    for (const auto& [agent, state] : r.agents) {
+      ControlInput c;
+      c.agent_id = agent;
+      forced.push_back(c);
+    }
+    std::lock_guard<std::mutex> l(s.mu);
+    if (auto st = check_controller_locked(s, credential, forced, "agents", "force it"); !st.ok()) return st;
+  }
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
@@ -448,19 +503,24 @@ absl::Status SessionManager::state_force(const std::string& id, const StateForce
   return st;
 }
 
-absl::Status SessionManager::close(const std::string& id) {
+absl::Status SessionManager::close(const std::string& id, const std::string& tenant) { return close_impl(id, &tenant); }
+
+absl::Status SessionManager::close_impl(const std::string& id, const std::string* tenant) {
   std::shared_ptr<ManagedSession> s;
   {
     std::lock_guard<std::mutex> l(mu_);
     auto it = sessions_.find(id);
     if (it == sessions_.end()) {
-      if (evicted_.erase(id)) {
+      auto ev = evicted_.find(id);
+      if (ev != evicted_.end() && (tenant == nullptr || ev->second == *tenant)) {
+        evicted_.erase(ev);
         remove_snapshot(options_.snapshot_dir, id);
         spdlog::info("session {}: closed (was evicted)", id);
         return absl::OkStatus();
       }
-      return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
+      return not_found(id);
     }
+    if (tenant != nullptr && it->second->tenant != *tenant) return not_found(id);
     s = it->second;
     sessions_.erase(it);
   }
@@ -492,29 +552,31 @@ static SessionInfo info_of(ManagedSession& s) {
   return i;
 }
 
-absl::StatusOr<std::pair<SessionInfo, TickView>> SessionManager::get(const std::string& id) {
-  auto found = find(id, Clock::now() + std::chrono::seconds(30));
+absl::StatusOr<std::pair<SessionInfo, TickView>> SessionManager::get(const std::string& id,
+                                                                     const std::string& tenant) {
+  auto found = find(id, tenant, Clock::now() + std::chrono::seconds(30));
   if (!found.ok()) return found.status();
   SessionInfo info = info_of(**found);
   std::lock_guard<std::mutex> l((*found)->mu);
   return std::make_pair(info, TickView{(*found)->tick, (*found)->view});
 }
 
-std::vector<SessionInfo> SessionManager::list() {
+std::vector<SessionInfo> SessionManager::list(const std::string& tenant) {
   std::vector<std::shared_ptr<ManagedSession>> all;
   {
     std::lock_guard<std::mutex> l(mu_);
-    for (const auto& [id, s] : sessions_) all.push_back(s);
+    for (const auto& [id, s] : sessions_)
+      if (s->tenant == tenant) all.push_back(s);
   }
   std::vector<SessionInfo> out;
   for (const auto& s : all) out.push_back(info_of(*s));
   return out;
 }
 
-absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const std::string& proposed_id,
-                                                 Clock::time_point deadline) {
+absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const std::string& tenant,
+                                                 const std::string& proposed_id, Clock::time_point deadline) {
   if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
-  auto found = find(id, deadline);
+  auto found = find(id, tenant, deadline);
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
   std::string nid;
@@ -527,6 +589,7 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   }
   auto f = std::make_shared<ManagedSession>();
   f->id = nid;
+  f->tenant = tenant;
   f->source = s.source;
   f->tick_deadline_ms = s.tick_deadline_ms;
   {
@@ -554,9 +617,66 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   return nid;
 }
 
-absl::Status SessionManager::watch_add(const std::string& id, std::shared_ptr<TickWatcher> w) {
+absl::Status SessionManager::check_controller_locked(const ManagedSession& s, const std::string& credential,
+                                                    const std::vector<ControlInput>& agents, const char* field,
+                                                    const char* action) {
+  if (!credential.empty()) {
+    bool issued = false;
+    for (const auto& [agent, c] : s.controller_of) issued = issued || c == credential;
+    if (!issued)
+      return absl::PermissionDeniedError(absl::StrCat("controller_credential is not one that session '", s.id,
+                                                      "' issued (JoinSession gives one)"));
+  }
+  for (size_t i = 0; i < agents.size(); ++i) {
+    auto it = s.controller_of.find(agents[i].agent_id);
+    if (it != s.controller_of.end() && it->second != credential)
+      return absl::PermissionDeniedError(absl::StrCat(
+          field, "[", std::to_string(i), "]: agent ", std::to_string(agents[i].agent_id), " of session '", s.id,
+          "' has a controller: only the client that joined as its controller (JoinSession) may ", action,
+          credential.empty() ? " (this call sent no controller_credential)"
+                             : " (this call's credential is another client's)"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<JoinResult> SessionManager::join(const std::string& id, const std::string& tenant,
+                                                const std::vector<int64_t>& agent_ids,
+                                                const std::string& credential) {
+  if (draining_)
+    return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
+  auto found = find(id, tenant, Clock::now() + std::chrono::seconds(30));
+  if (!found.ok()) return found.status();
+  ManagedSession& s = **found;
+  if (agent_ids.empty()) return absl::InvalidArgumentError("agent_ids is empty: name the agents to control");
+  std::lock_guard<std::mutex> l(s.mu);
+  if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
+  if (auto st = check_controller_locked(s, credential, {}, "agent_ids", "join"); !st.ok()) return st;
+  std::set<int64_t> seen;
+  for (size_t i = 0; i < agent_ids.size(); ++i) {
+    const int64_t a = agent_ids[i];
+    const std::string where = absl::StrCat("agent_ids[", std::to_string(i), "] ", std::to_string(a));
+    if (!s.controllers.count(a))
+      return absl::InvalidArgumentError(absl::StrCat(where, " is not a controlled agent of session '", id, "'"));
+    if (!seen.insert(a).second) return absl::InvalidArgumentError(absl::StrCat(where, " appears twice"));
+    auto it = s.controller_of.find(a);
+    if (it != s.controller_of.end() && it->second != credential)
+      return absl::AlreadyExistsError(
+          absl::StrCat(where, " of session '", id, "' already has a controller (another client joined for it)"));
+  }
+  JoinResult out;
+  out.credential = credential.empty() ? random_session_id() : credential;
+  for (int64_t a : agent_ids) s.controller_of[a] = out.credential;
+  for (const auto& [agent, c] : s.controller_of)
+    if (c == out.credential) out.agents.push_back(agent);
+  ++s.changes;  // the claims are saved with the session
+  spdlog::info("session {}: a client joined as the controller of {} agents", id, agent_ids.size());
+  return out;
+}
+
+absl::Status SessionManager::watch_add(const std::string& id, const std::string& tenant,
+                                       std::shared_ptr<TickWatcher> w) {
   if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new watch streams");
-  auto found = find(id, Clock::now() + std::chrono::seconds(30));
+  auto found = find(id, tenant, Clock::now() + std::chrono::seconds(30));
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
   if (++watchers_ > options_.max_watchers) {
@@ -616,17 +736,24 @@ int SessionManager::restore_all() {
                     std::string(st.message()));
       continue;
     }
+    // Read first: its owner decides who may bring it back.
+    auto snap = read_snapshot(options_.snapshot_dir, id);
+    if (!snap.ok()) {
+      spdlog::error("session {}: not restored: {}", id, std::string(snap.status().message()));
+      continue;
+    }
+    const std::string tenant = snap->tenant;
     // The caps hold on a restart too: sessions beyond them stay evicted and come back on their next call.
     {
       std::lock_guard<std::mutex> l(mu_);
       if (static_cast<int>(sessions_.size()) >= options_.max_sessions) {
-        evicted_.insert(id);
+        evicted_[id] = tenant;
         spdlog::info("session {}: left evicted (--max_sessions={} reached); restored on its next call", id,
                      options_.max_sessions);
         continue;
       }
     }
-    auto s = restore_snapshot(id, Clock::now() + std::chrono::minutes(10));
+    auto s = restore_from(std::move(*snap), Clock::now() + std::chrono::minutes(10));
     if (!s.ok()) {
       spdlog::error("session {}: not restored: {}", id, std::string(s.status().message()));
       continue;
@@ -636,7 +763,7 @@ int SessionManager::restore_all() {
       uint64_t held = (*s)->bytes;
       for (const auto& [other, o] : sessions_) held += o->bytes;
       if (held > options_.max_cache_bytes) {
-        evicted_.insert(id);
+        evicted_[id] = tenant;
         spdlog::info("session {}: left evicted ({} bytes would pass --max_cache_mb={}); restored on its next call",
                      id, (*s)->bytes.load(), options_.max_cache_bytes >> 20);
         continue;
@@ -699,7 +826,7 @@ void SessionManager::reaper() {
     }
     for (const std::string& id : expired) {
       spdlog::info("session {}: idle for more than --idle_timeout_s={}, closing", id, options_.idle_timeout_s);
-      (void)close(id);
+      (void)close_impl(id, nullptr);
     }
   }
 }

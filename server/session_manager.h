@@ -20,6 +20,7 @@
 #include "engine/scenestreamer.h"
 #include "server/fair_slots.h"
 #include "server/metrics.h"
+#include "server/snapshot.h"
 
 namespace ss::server {
 
@@ -50,6 +51,12 @@ struct SessionInfo {
   std::vector<int64_t> controlled;
 };
 
+// JoinSession's answer: the caller's controller credential and every agent it controls.
+struct JoinResult {
+  std::string credential;
+  std::vector<int64_t> agents;
+};
+
 struct TickView {
   int64_t tick = 0;
   StepResult view;
@@ -71,27 +78,40 @@ class TickWatcher {
   virtual bool done() const = 0;
 };
 
+// Every call names the caller's tenant (server/auth.h; "" without --tokens_file). A session belongs to the tenant that
+// created it: for any other tenant every call on it answers NOT_FOUND with the message of an unknown id, and list()
+// leaves it out. Agents claimed by join() take poses (step) and forces (state_force) only with their credential.
 class SessionManager {
  public:
   SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics);
   ~SessionManager();
 
-  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_deadline_ms, const std::string& proposed_id, Clock::time_point deadline,
-                                  std::string* id);
+  absl::StatusOr<TickView> create(const std::string& tenant, const SessionSource& source,
+                                  const SessionOptions& options, int tick_deadline_ms, const std::string& proposed_id,
+                                  Clock::time_point deadline, std::string* id);
   // One call's ticks. In a multi-client session the caller waits for the other controllers (or the tick deadline).
-  absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::vector<ControlInput>& controls,
-                                             int num_ticks, Clock::time_point deadline);
-  absl::StatusOr<std::vector<int64_t>> inject(const std::string& id, const InjectRequest& r,
+  // `credential`: JoinSession's, for agents with a controller (PERMISSION_DENIED for their poses without it).
+  absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::string& tenant,
+                                             const std::string& credential, const std::vector<ControlInput>& controls,
+                                             int num_ticks, Clock::time_point deadline,
+                                             const std::function<bool()>& cancelled = {});
+  absl::StatusOr<std::vector<int64_t>> inject(const std::string& id, const std::string& tenant, const InjectRequest& r,
                                               Clock::time_point deadline);
-  absl::Status state_force(const std::string& id, const StateForceRequest& r);
-  absl::Status close(const std::string& id);
-  absl::StatusOr<std::pair<SessionInfo, TickView>> get(const std::string& id);
-  absl::StatusOr<std::string> fork(const std::string& id, const std::string& proposed_id,
+  absl::Status state_force(const std::string& id, const std::string& tenant, const std::string& credential,
+                           const StateForceRequest& r);
+  absl::Status close(const std::string& id, const std::string& tenant);
+  absl::StatusOr<std::pair<SessionInfo, TickView>> get(const std::string& id, const std::string& tenant);
+  // The fork belongs to the caller's tenant and has no controllers (its creator drives it).
+  absl::StatusOr<std::string> fork(const std::string& id, const std::string& tenant, const std::string& proposed_id,
                                    Clock::time_point deadline);
-  std::vector<SessionInfo> list();
+  std::vector<SessionInfo> list(const std::string& tenant);
+  // Claims controlled agents without a controller for one client. With `credential` (one this session issued), the
+  // agents are added to it; else a new credential (128 random bits) is made.
+  absl::StatusOr<JoinResult> join(const std::string& id, const std::string& tenant,
+                                  const std::vector<int64_t>& agent_ids, const std::string& credential);
   // Registers `w` for every tick of session `id` from the current one on (given to it before this returns), until
   // on_end() or w->done(). RESOURCE_EXHAUSTED beyond --max_watchers streams not yet done.
-  absl::Status watch_add(const std::string& id, std::shared_ptr<TickWatcher> w);
+  absl::Status watch_add(const std::string& id, const std::string& tenant, std::shared_ptr<TickWatcher> w);
   // A stream registered by watch_add is over (its place under --max_watchers is free again). Takes no lock.
   void watch_done() { --watchers_; }
   int watchers() const { return watchers_; }
@@ -107,7 +127,11 @@ class SessionManager {
   uint64_t total_bytes();
 
  private:
-  absl::StatusOr<std::shared_ptr<ManagedSession>> find(const std::string& id, Clock::time_point deadline);
+  // The session `id` of `tenant` (restored if it was evicted); NOT_FOUND alike for unknown ids and other tenants'.
+  absl::StatusOr<std::shared_ptr<ManagedSession>> find(const std::string& id, const std::string& tenant,
+                                                       Clock::time_point deadline);
+  // Closes `id` if `tenant` is null or its tenant (the reaper closes any tenant's idle sessions).
+  absl::Status close_impl(const std::string& id, const std::string* tenant);
   absl::StatusOr<std::string> new_id(const std::string& proposed);
   // Evicts idle sessions other than `keep` (LRU) until `extra_sessions` more sessions and `extra_bytes` more bytes
   // fit under the caps; RESOURCE_EXHAUSTED when they cannot. Holds mu_.
@@ -117,14 +141,22 @@ class SessionManager {
   absl::Status evict_locked(const std::shared_ptr<ManagedSession>& s);
   absl::Status save(ManagedSession& s);
   absl::StatusOr<std::shared_ptr<ManagedSession>> restore_snapshot(const std::string& id, Clock::time_point deadline);
+  absl::StatusOr<std::shared_ptr<ManagedSession>> restore_from(Snapshot snap, Clock::time_point deadline);
   // Runs `fn` on a compute slot (bounded by compute_threads), or DEADLINE_EXCEEDED when none frees up in time.
   absl::Status compute(Clock::time_point deadline, const std::function<absl::Status()>& fn);
-  // Runs n ticks, each on a compute slot of its own, appending each tick's view to `out`.
+  // Runs n ticks, each on a compute slot of its own, appending each tick's view to `out`. Stops between ticks
+  // (DEADLINE_EXCEEDED, CANCELLED) once the deadline passed or `cancelled()` says the client is gone.
   absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
-                         Clock::time_point deadline, std::vector<TickView>* out);
+                         Clock::time_point deadline, const std::function<bool()>& cancelled,
+                         std::vector<TickView>* out);
   // Saves every session that changed since its last snapshot (the background snapshots).
   void save_changed();
   bool evicted_contains(const std::string& id);
+  // PERMISSION_DENIED when an agent of `agents` has a controller whose credential is not `credential`, or when
+  // `credential` is set but not one this session issued. Holds s.mu.
+  static absl::Status check_controller_locked(const ManagedSession& s, const std::string& credential,
+                                              const std::vector<ControlInput>& agents, const char* field,
+                                              const char* action);
   // Ends and drops the watchers of `s`. Holds s.mu.
   void end_watchers_locked(ManagedSession& s);
   // Closes idle sessions and writes the background snapshots.
@@ -136,7 +168,7 @@ class SessionManager {
   FairSlots slots_;
   std::mutex mu_;
   std::map<std::string, std::shared_ptr<ManagedSession>> sessions_;
-  std::set<std::string> evicted_;  // saved to the snapshot directory, restored on their next call
+  std::map<std::string, std::string> evicted_;  // id -> tenant: saved to the snapshot directory, restored on next call
   std::atomic<bool> draining_{false};
   std::atomic<int> watchers_{0};
   std::atomic<bool> stop_{false};

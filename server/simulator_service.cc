@@ -54,6 +54,8 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
 ::grpc::Status SimulatorService::CreateSession(Ctx* ctx, const pb::CreateSessionRequest* r,
                                                pb::CreateSessionResponse* out) {
   InFlight guard(in_flight_);
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("CreateSession", r->session_id(), tenant.status());
   auto options = options_from_proto(*r);
   if (!options.ok()) return finish("CreateSession", r->session_id(), options.status());
   SessionSource source;
@@ -66,7 +68,7 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
     return finish("CreateSession", r->session_id(),
                   absl::InvalidArgumentError("scenario: scenario_name or womd_scenario is empty"));
   std::string id;
-  auto t = sessions_.create(source, *options, r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
+  auto t = sessions_.create(*tenant, source, *options, r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
   if (!t.ok()) return finish("CreateSession", r->session_id(), t.status());
   out->set_session_id(id);
   tick_to_proto(t->view, t->tick, out->mutable_initial());
@@ -75,9 +77,12 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
 
 ::grpc::Status SimulatorService::StepScene(Ctx* ctx, const pb::StepSceneRequest* r, pb::StepSceneResponse* out) {
   InFlight guard(in_flight_);
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("StepScene", r->session_id(), tenant.status());
   auto controls = controls_from_proto(*r);
   if (!controls.ok()) return finish("StepScene", r->session_id(), controls.status());
-  auto ticks = sessions_.step(r->session_id(), *controls, r->num_ticks(), deadline(ctx));
+  auto ticks = sessions_.step(r->session_id(), *tenant, r->controller_credential(), *controls, r->num_ticks(),
+                              deadline(ctx), [ctx] { return ctx->IsCancelled(); });
   if (!ticks.ok()) return finish("StepScene", r->session_id(), ticks.status());
   for (const TickView& t : *ticks) tick_to_proto(t.view, t.tick, out->add_ticks());
   return finish("StepScene", r->session_id(), absl::OkStatus());
@@ -86,27 +91,36 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
 ::grpc::Status SimulatorService::InjectAgent(Ctx* ctx, const pb::InjectAgentRequest* r,
                                              pb::InjectAgentResponse* out) {
   InFlight guard(in_flight_);
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("InjectAgent", r->session_id(), tenant.status());
   auto q = inject_from_proto(*r);
   if (!q.ok()) return finish("InjectAgent", r->session_id(), q.status());
-  auto ids = sessions_.inject(r->session_id(), *q, deadline(ctx));
+  auto ids = sessions_.inject(r->session_id(), *tenant, *q, deadline(ctx));
   if (!ids.ok()) return finish("InjectAgent", r->session_id(), ids.status());
   for (int64_t id : *ids) out->add_agent_ids(id);
   return finish("InjectAgent", r->session_id(), absl::OkStatus());
 }
 
-::grpc::Status SimulatorService::StateForce(Ctx*, const pb::StateForceRequest* r, pb::StateForceResponse*) {
+::grpc::Status SimulatorService::StateForce(Ctx* ctx, const pb::StateForceRequest* r, pb::StateForceResponse*) {
   InFlight guard(in_flight_);
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("StateForce", r->session_id(), tenant.status());
   auto q = force_from_proto(*r);
   if (!q.ok()) return finish("StateForce", r->session_id(), q.status());
-  return finish("StateForce", r->session_id(), sessions_.state_force(r->session_id(), *q));
+  return finish("StateForce", r->session_id(),
+                sessions_.state_force(r->session_id(), *tenant, r->controller_credential(), *q));
 }
 
-::grpc::Status SimulatorService::CloseSession(Ctx*, const pb::CloseSessionRequest* r, pb::CloseSessionResponse*) {
-  return finish("CloseSession", r->session_id(), sessions_.close(r->session_id()));
+::grpc::Status SimulatorService::CloseSession(Ctx* ctx, const pb::CloseSessionRequest* r, pb::CloseSessionResponse*) {
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("CloseSession", r->session_id(), tenant.status());
+  return finish("CloseSession", r->session_id(), sessions_.close(r->session_id(), *tenant));
 }
 
-::grpc::Status SimulatorService::GetSession(Ctx*, const pb::GetSessionRequest* r, pb::GetSessionResponse* out) {
-  auto g = sessions_.get(r->session_id());
+::grpc::Status SimulatorService::GetSession(Ctx* ctx, const pb::GetSessionRequest* r, pb::GetSessionResponse* out) {
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("GetSession", r->session_id(), tenant.status());
+  auto g = sessions_.get(r->session_id(), *tenant);
   if (!g.ok()) return finish("GetSession", r->session_id(), g.status());
   info_to_proto(g->first, out->mutable_info());
   tick_to_proto(g->second.view, g->second.tick, out->mutable_current());
@@ -115,13 +129,18 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
 
 ::grpc::Status SimulatorService::ForkSession(Ctx* ctx, const pb::ForkSessionRequest* r, pb::ForkSessionResponse* out) {
   InFlight guard(in_flight_);
-  auto id = sessions_.fork(r->session_id(), r->new_session_id(), deadline(ctx));
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("ForkSession", r->session_id(), tenant.status());
+  auto id = sessions_.fork(r->session_id(), *tenant, r->new_session_id(), deadline(ctx));
   if (!id.ok()) return finish("ForkSession", r->session_id(), id.status());
   out->set_session_id(*id);
   return finish("ForkSession", r->session_id(), absl::OkStatus());
 }
 
-::grpc::Status SimulatorService::ListScenarios(Ctx*, const pb::ListScenariosRequest*, pb::ListScenariosResponse* out) {
+::grpc::Status SimulatorService::ListScenarios(Ctx* ctx, const pb::ListScenariosRequest*,
+                                               pb::ListScenariosResponse* out) {
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("ListScenarios", "-", tenant.status());
   for (const EngineScenario& s : engine_scenarios(engine_)) {
     pb::ScenarioInfo* o = out->add_scenarios();
     o->set_name(s.name);
@@ -133,9 +152,23 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   return finish("ListScenarios", "-", absl::OkStatus());
 }
 
-::grpc::Status SimulatorService::ListSessions(Ctx*, const pb::ListSessionsRequest*, pb::ListSessionsResponse* out) {
-  for (const SessionInfo& i : sessions_.list()) info_to_proto(i, out->add_sessions());
+::grpc::Status SimulatorService::ListSessions(Ctx* ctx, const pb::ListSessionsRequest*,
+                                              pb::ListSessionsResponse* out) {
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("ListSessions", "-", tenant.status());
+  for (const SessionInfo& i : sessions_.list(*tenant)) info_to_proto(i, out->add_sessions());
   return finish("ListSessions", "-", absl::OkStatus());
+}
+
+::grpc::Status SimulatorService::JoinSession(Ctx* ctx, const pb::JoinSessionRequest* r, pb::JoinSessionResponse* out) {
+  auto tenant = caller_tenant(auth_, *ctx);
+  if (!tenant.ok()) return finish("JoinSession", r->session_id(), tenant.status());
+  auto j = sessions_.join(r->session_id(), *tenant, {r->agent_ids().begin(), r->agent_ids().end()},
+                          r->controller_credential());
+  if (!j.ok()) return finish("JoinSession", r->session_id(), j.status());
+  out->set_controller_credential(j->credential);
+  for (int64_t a : j->agents) out->add_agent_ids(a);
+  return finish("JoinSession", r->session_id(), absl::OkStatus());
 }
 
 namespace {
@@ -221,10 +254,12 @@ class WatchReactor final : public ::grpc::ServerWriteReactor<pb::Tick>, public T
 
 }  // namespace
 
-::grpc::ServerWriteReactor<pb::Tick>* SimulatorService::WatchSession(::grpc::CallbackServerContext*,
+::grpc::ServerWriteReactor<pb::Tick>* SimulatorService::WatchSession(::grpc::CallbackServerContext* ctx,
                                                                    const pb::WatchSessionRequest* r) {
   auto reactor = WatchReactor::make(sessions_);
-  const absl::Status st = sessions_.watch_add(r->session_id(), reactor);
+  auto tenant = caller_tenant(auth_, *ctx);
+  const absl::Status st =
+      tenant.ok() ? sessions_.watch_add(r->session_id(), *tenant, reactor) : tenant.status();
   if (st.ok()) {
     reactor->registered();
     metrics_.count_call("WatchSession");

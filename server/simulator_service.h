@@ -2,6 +2,7 @@
 #pragma once
 
 #include "scenestreamer/v1/simulator.grpc.pb.h"
+#include "server/auth.h"
 #include "server/metrics.h"
 #include "server/convert.h"
 #include "server/session_manager.h"
@@ -13,8 +14,11 @@ namespace ss::server {
 class SimulatorService final
     : public ::scenestreamer::v1::Simulator::WithCallbackMethod_WatchSession<::scenestreamer::v1::Simulator::Service> {
  public:
-  SimulatorService(Engine& engine, SessionManager& sessions, Metrics& metrics, double default_deadline_s)
-      : engine_(engine), sessions_(sessions), metrics_(metrics), default_deadline_s_(default_deadline_s) {}
+  // `auth`: the tokens (--tokens_file), or null for no authentication (every caller is tenant "").
+  SimulatorService(Engine& engine, SessionManager& sessions, Metrics& metrics, double default_deadline_s,
+                   const TokenAuth* auth = nullptr)
+      : engine_(engine), sessions_(sessions), metrics_(metrics), default_deadline_s_(default_deadline_s),
+        auth_(auth) {}
 
   using Ctx = ::grpc::ServerContext;
   ::grpc::Status CreateSession(Ctx*, const pb::CreateSessionRequest*, pb::CreateSessionResponse*) override;
@@ -26,6 +30,7 @@ class SimulatorService final
   ::grpc::Status ForkSession(Ctx*, const pb::ForkSessionRequest*, pb::ForkSessionResponse*) override;
   ::grpc::Status ListScenarios(Ctx*, const pb::ListScenariosRequest*, pb::ListScenariosResponse*) override;
   ::grpc::Status ListSessions(Ctx*, const pb::ListSessionsRequest*, pb::ListSessionsResponse*) override;
+  ::grpc::Status JoinSession(Ctx*, const pb::JoinSessionRequest*, pb::JoinSessionResponse*) override;
   ::grpc::ServerWriteReactor<pb::Tick>* WatchSession(::grpc::CallbackServerContext*,
                                                      const pb::WatchSessionRequest*) override;
 
@@ -41,6 +46,7 @@ class SimulatorService final
   SessionManager& sessions_;
   Metrics& metrics_;
   double default_deadline_s_;
+  const TokenAuth* auth_;
   std::atomic<int> in_flight_{0};
   struct InFlight {
     std::atomic<int>& n;

@@ -12,9 +12,11 @@ namespace ss::server {
 namespace {
 
 // The format's magic and version, refused with both versions named when they differ. SSSNAP01 had no checksum;
-// SSSNAP02 kept the tick clock here (now the engine's state holds it).
+// SSSNAP02 kept the tick clock here (now the engine's state holds it); SSSNAP04 added the tenant and the
+// controllers' credentials (SSSNAP03 is still read: tenant "", no controllers).
 constexpr char kMagicPrefix[] = "SSSNAP";
-constexpr char kMagic[] = "SSSNAP03";
+constexpr char kMagic[] = "SSSNAP04";
+constexpr char kMagic03[] = "SSSNAP03";
 constexpr char kSuffix[] = ".snapshot";
 
 void put_u64(std::string& out, uint64_t v) {
@@ -67,6 +69,12 @@ absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   put_str(out, s.source.womd_bytes);
   put_u64(out, static_cast<uint64_t>(s.tick_deadline_ms));
   put_str(out, s.session_bytes);
+  put_str(out, s.tenant);
+  put_u64(out, s.controllers.size());
+  for (const auto& [agent, credential] : s.controllers) {
+    put_u64(out, static_cast<uint64_t>(agent));
+    put_str(out, credential);
+  }
   put_u64(out, fnv1a64(out));
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -83,7 +91,8 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   auto bad = [&](const std::string& what) { return absl::DataLossError(absl::StrCat("snapshot ", *path, ": ", what)); };
   if (in.size() < 8 || std::memcmp(in.data(), kMagicPrefix, 6) != 0)
     return bad("not a snapshot file (no SSSNAP magic)");
-  if (std::memcmp(in.data(), kMagic, 8) != 0)
+  const bool v03 = std::memcmp(in.data(), kMagic03, 8) == 0;
+  if (!v03 && std::memcmp(in.data(), kMagic, 8) != 0)
     return absl::FailedPreconditionError(absl::StrCat("snapshot ", *path, ": format ", in.substr(0, 8),
                                                       " is not this server's ", kMagic,
                                                       "; the session cannot be restored by this version"));
@@ -97,8 +106,19 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   Snapshot s;
   uint64_t deadline;
   if (!r.str(&s.session_id) || !r.str(&s.source.scenario_name) || !r.str(&s.source.womd_bytes) ||
-      !r.u64(&deadline) || !r.str(&s.session_bytes) || r.pos != r.end)
-    return bad("fields truncated or trailing bytes");
+      !r.u64(&deadline) || !r.str(&s.session_bytes))
+    return bad("fields truncated");
+  if (!v03) {
+    uint64_t n;
+    if (!r.str(&s.tenant) || !r.u64(&n) || n > (r.end - r.pos) / 16) return bad("tenant or controllers truncated");
+    for (uint64_t i = 0; i < n; ++i) {
+      uint64_t agent;
+      std::string credential;
+      if (!r.u64(&agent) || !r.str(&credential)) return bad("controllers truncated");
+      s.controllers.emplace_back(static_cast<int64_t>(agent), std::move(credential));
+    }
+  }
+  if (r.pos != r.end) return bad("trailing bytes after the last field");
   if (s.session_id != session_id)
     return bad(absl::StrCat("holds session ", echo_id(s.session_id), ", not the ", echo_id(session_id),
                             " its name says"));

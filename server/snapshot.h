@@ -16,6 +16,8 @@ namespace ss::server {
 
 struct Snapshot {
   std::string session_id;
+  std::string tenant;                                  // the owner ("" without --tokens_file)
+  std::vector<std::pair<int64_t, std::string>> controllers;  // agent -> controller credential (JoinSession)
   SessionSource source;
   int tick_deadline_ms = 0;
   std::string session_bytes;  // Session::save(): the engine's state, its tick clock included

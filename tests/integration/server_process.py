@@ -1,5 +1,6 @@
 """Starts the real scenestreamer-server binary on a free 127.0.0.1 port, as a subprocess, for integration tests."""
 import atexit
+import collections
 import os
 import re
 import shutil
@@ -8,6 +9,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import unittest
 
 import grpc
 
@@ -32,10 +34,49 @@ def small_model():
     return _MODEL
 
 
+class _Details(collections.namedtuple("_Details", "method timeout metadata credentials wait_for_ready compression"),
+               grpc.ClientCallDetails):
+    pass
+
+
+class _Metadata(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInterceptor):
+    """Adds fixed metadata (a bearer token) to every call, also on plaintext channels."""
+
+    def __init__(self, metadata):
+        self.metadata = list(metadata)
+
+    def _details(self, d):
+        return _Details(d.method, d.timeout, list(d.metadata or []) + self.metadata, d.credentials,
+                        d.wait_for_ready, d.compression)
+
+    def intercept_unary_unary(self, continuation, details, request):
+        return continuation(self._details(details), request)
+
+    def intercept_unary_stream(self, continuation, details, request):
+        return continuation(self._details(details), request)
+
+
+def channel_to(target, tls_root=None, token=None, client_cert=None):
+    """A channel to `target`: TLS when `tls_root` (PEM bytes) is given, with a client certificate (cert, key PEM
+    bytes) for mutual TLS, and `authorization: Bearer <token>` on every call when `token` is given."""
+    if tls_root is not None:
+        creds = grpc.ssl_channel_credentials(root_certificates=tls_root,
+                                             private_key=client_cert[1] if client_cert else None,
+                                             certificate_chain=client_cert[0] if client_cert else None)
+        channel = grpc.secure_channel(target, creds)
+    else:
+        channel = grpc.insecure_channel(target)
+    if token is not None:
+        channel = grpc.intercept_channel(channel, _Metadata([("authorization", f"Bearer {token}")]))
+    return channel
+
+
 class Server:
-    def __init__(self, *flags, snapshot_dir=None):
+    def __init__(self, *flags, snapshot_dir=None, tls_root=None, token=None, client_cert=None):
+        """`flags` go to the server; `tls_root`, `token` and `client_cert` are how self.stub connects."""
         self.flags = list(flags)
         self.snapshot_dir = snapshot_dir
+        self.tls_root, self.token, self.client_cert = tls_root, token, client_cert
         fd, self.log_path = tempfile.mkstemp(prefix="ss-it-server-", suffix=".log")
         os.close(fd)
         # Removed when the test process exits; a server that fails to start has its log in the exception.
@@ -57,7 +98,7 @@ class Server:
                 self.port = int(m.group(1))
                 mm = re.search(r"metrics on http://127.0.0.1:(\d+)/metrics", text)
                 self.metrics_port = int(mm.group(1)) if mm else None
-                self.channel = grpc.insecure_channel(f"127.0.0.1:{self.port}")
+                self.channel = channel_to(f"127.0.0.1:{self.port}", self.tls_root, self.token, self.client_cert)
                 self.stub = rpc.SimulatorStub(self.channel)
                 return self
             if self.proc.poll() is not None:
@@ -122,3 +163,17 @@ def ego_pose(tick):
             return pb.ControlledPose(agent_id=a.id, x=s.x + 0.5 * s.vx, y=s.y + 0.5 * s.vy, heading=s.heading,
                                      speed=speed)
     return None
+
+
+class ServerTestCase(unittest.TestCase):
+    """Tests that share one server process, started once for the class (self.server), with the class's
+    `server_flags`."""
+    server_flags = ()
+
+    @classmethod
+    def setUpClass(cls):
+        cls.server = Server(*cls.server_flags).start()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.server.stop()

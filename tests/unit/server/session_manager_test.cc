@@ -31,7 +31,7 @@ class ManagerTest : public ::testing::Test {
   static Clock::time_point soon() { return Clock::now() + std::chrono::seconds(120); }
   absl::StatusOr<std::string> create(SessionManager& m, const std::string& id, SessionOptions o = {}) {
     std::string out;
-    auto t = m.create({*name_, ""}, o, 0, id, soon(), &out);
+    auto t = m.create("", {*name_, ""}, o, 0, id, soon(), &out);
     if (!t.ok()) return t.status();
     return out;
   }
@@ -53,7 +53,7 @@ TEST_F(ManagerTest, TheSessionCapHoldsWithAClearError) {
   EXPECT_EQ(c.status().code(), absl::StatusCode::kResourceExhausted);
   EXPECT_NE(c.status().message().find("--max_sessions=2"), std::string::npos) << c.status();
   EXPECT_EQ(m.count(), 2);
-  auto f = m.fork("a", "", soon());
+  auto f = m.fork("a", "", "", soon());
   EXPECT_EQ(f.status().code(), absl::StatusCode::kResourceExhausted);
 }
 
@@ -68,17 +68,17 @@ TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
   SessionManager m(*engine_, o, metrics_);
   ASSERT_TRUE(create(m, "old").ok());
   ASSERT_TRUE(create(m, "recent").ok());
-  ASSERT_TRUE(m.step("old", {}, 1, soon()).ok());  // "old" is now the more recently used
+  ASSERT_TRUE(m.step("old", "", "", {}, 1, soon()).ok());  // "old" is now the more recently used
   ASSERT_TRUE(create(m, "new").ok());
   std::vector<std::string> held;
-  for (const SessionInfo& i : m.list()) held.push_back(i.id);
+  for (const SessionInfo& i : m.list("")) held.push_back(i.id);
   EXPECT_EQ(held, (std::vector<std::string>{"new", "old"}));
   EXPECT_TRUE(std::filesystem::exists(dir / "recent.snapshot"));
   // The evicted session comes back on its next call, at the tick it was saved at.
-  auto got = m.get("recent");
+  auto got = m.get("recent", "");
   ASSERT_TRUE(got.ok()) << got.status();
   EXPECT_EQ(got->second.tick, 0);
-  ASSERT_TRUE(m.close("recent").ok());
+  ASSERT_TRUE(m.close("recent", "").ok());
   EXPECT_FALSE(std::filesystem::exists(dir / "recent.snapshot"));
   std::filesystem::remove_all(dir);
 }
@@ -88,7 +88,7 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   o.evict_idle_s = 1000;
   SessionManager m(*engine_, o, metrics_);
   std::string id;
-  auto first = m.create({*name_, ""}, {}, 0, "", soon(), &id);
+  auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &id);
   ASSERT_TRUE(first.ok());
   std::vector<int64_t> ids;
   for (const AgentView& a : first->view.agents)
@@ -96,7 +96,7 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   SessionOptions so;
   for (int64_t a : ids) so.controlled_ids.push_back(static_cast<int32_t>(a));
   std::string multi;
-  auto t0 = m.create({*name_, ""}, so, 60000, "", soon(), &multi);
+  auto t0 = m.create("", {*name_, ""}, so, 60000, "", soon(), &multi);
   ASSERT_TRUE(t0.ok()) << t0.status();
   std::vector<absl::StatusOr<std::vector<TickView>>> got(2, absl::UnknownError("not run"));
   std::vector<std::thread> clients;
@@ -106,7 +106,7 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
         if (a.id == ids[k]) {
           ControlInput c{a.id, a.state.x + 0.5 * a.state.vx, a.state.y + 0.5 * a.state.vy, a.state.heading, {}};
           if (k == 1) std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the late one
-          got[k] = m.step(multi, {c}, 1, soon());
+          got[k] = m.step(multi, "", "", {c}, 1, soon());
         }
     });
   for (auto& c : clients) c.join();
@@ -117,9 +117,91 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   EXPECT_EQ((*got[1])[0].tick, 1);
   EXPECT_EQ((*got[0])[0].view.step, (*got[1])[0].view.step);
   // A pose for an agent the session does not control is the wire's mistake: INVALID_ARGUMENT naming it.
-  auto bad = m.step(multi, {ControlInput{123456789, 0, 0, 0, {}}}, 1, soon());
+  auto bad = m.step(multi, "", "", {ControlInput{123456789, 0, 0, 0, {}}}, 1, soon());
   EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(bad.status().message().find("123456789"), std::string::npos);
+}
+
+TEST_F(ManagerTest, AnotherTenantsSessionIsAnsweredAsAnUnknownOne) {
+  ManagerOptions o;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  std::string id;
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "hers", soon(), &id).ok());
+  const auto unknown = m.get("never-was", "bob").status();
+  ASSERT_EQ(unknown.code(), absl::StatusCode::kNotFound);
+  auto same = [&](const absl::Status& st) {
+    EXPECT_EQ(st.code(), absl::StatusCode::kNotFound) << st;
+    // The same words as for an unknown id, with only the id itself differing.
+    std::string msg(st.message());
+    msg.replace(msg.find("'hers'"), 6, "'never-was'");
+    EXPECT_EQ(msg, unknown.message());
+  };
+  same(m.get("hers", "bob").status());
+  same(m.step("hers", "bob", "", {}, 1, soon()).status());
+  InjectRequest one;
+  one.count = 1;
+  same(m.inject("hers", "bob", one, soon()).status());
+  same(m.state_force("hers", "bob", "", {}));
+  same(m.fork("hers", "bob", "", soon()).status());
+  same(m.join("hers", "bob", {1}, "").status());
+  same(m.close("hers", "bob"));
+  EXPECT_TRUE(m.list("bob").empty());
+  ASSERT_EQ(m.list("alice").size(), 1u);
+  EXPECT_TRUE(m.step("hers", "alice", "", {}, 1, soon()).ok());  // untouched by bob's calls
+  auto f = m.fork("hers", "alice", "", soon());
+  ASSERT_TRUE(f.ok()) << f.status();
+  EXPECT_EQ(m.get(*f, "bob").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_TRUE(m.close("hers", "alice").ok());
+}
+
+TEST_F(ManagerTest, OnlyAnAgentsControllerSendsItsPoses) {
+  ManagerOptions o;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  std::string probe;
+  auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &probe);
+  ASSERT_TRUE(first.ok());
+  std::vector<AgentView> two;
+  for (const AgentView& a : first->view.agents)
+    if (a.type == 0 && two.size() < 2) two.push_back(a);
+  ASSERT_EQ(two.size(), 2u);
+  SessionOptions so;
+  for (const AgentView& a : two) so.controlled_ids.push_back(static_cast<int32_t>(a.id));
+  std::string id;
+  ASSERT_TRUE(m.create("", {*name_, ""}, so, 60000, "", soon(), &id).ok());
+  auto a = m.join(id, "", {two[0].id}, "");
+  ASSERT_TRUE(a.ok()) << a.status();
+  EXPECT_EQ(a->credential.size(), 32u);
+  EXPECT_EQ(a->agents, std::vector<int64_t>{two[0].id});
+  // Claimed once: a second client cannot take it.
+  EXPECT_EQ(m.join(id, "", {two[0].id}, "").status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_EQ(m.join(id, "", {987654}, "").status().code(), absl::StatusCode::kInvalidArgument);
+  auto b = m.join(id, "", {two[1].id}, "");
+  ASSERT_TRUE(b.ok()) << b.status();
+  auto pose = [](const AgentView& v) {
+    return ControlInput{v.id, v.state.x + 0.5 * v.state.vx, v.state.y + 0.5 * v.state.vy, v.state.heading, {}};
+  };
+  // B (or anyone without A's credential) sending A's agent's pose: PERMISSION_DENIED naming the agent.
+  for (const std::string& cred : {std::string(), b->credential}) {
+    auto st = m.step(id, "", cred, {pose(two[0])}, 1, soon()).status();
+    EXPECT_EQ(st.code(), absl::StatusCode::kPermissionDenied) << st;
+    EXPECT_NE(st.message().find(std::to_string(two[0].id)), std::string::npos) << st;
+    EXPECT_NE(st.message().find("controller"), std::string::npos) << st;
+  }
+  EXPECT_EQ(m.step(id, "", "forged", {}, 1, soon()).status().code(), absl::StatusCode::kPermissionDenied);
+  StateForceRequest force;
+  force.agents.push_back({two[0].id, two[0].state});
+  EXPECT_EQ(m.state_force(id, "", b->credential, force).code(), absl::StatusCode::kPermissionDenied);
+  // Each controller's own pose goes through, and the tick advances with both.
+  std::vector<absl::StatusOr<std::vector<TickView>>> got(2, absl::UnknownError("not run"));
+  std::thread tb([&] { got[1] = m.step(id, "", b->credential, {pose(two[1])}, 1, soon()); });
+  got[0] = m.step(id, "", a->credential, {pose(two[0])}, 1, soon());
+  tb.join();
+  ASSERT_TRUE(got[0].ok()) << got[0].status();
+  ASSERT_TRUE(got[1].ok()) << got[1].status();
+  EXPECT_EQ((*got[0])[0].tick, 1);
+  EXPECT_EQ((*got[1])[0].tick, 1);
 }
 
 TEST(SessionId, TheRuleAndShortEchoes) {
