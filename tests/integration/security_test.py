@@ -79,7 +79,8 @@ class TlsTest(unittest.TestCase):
             ([f"--tls_cert={p.path('server.pem')}"], "--tls_cert and --tls_key go together"),
             ([f"--tls_cert={p.path('server.pem')}", f"--tls_key={p.path('other.key')}"],
              f"--tls_key {p.path('other.key')} is not the private key of the certificate"),
-            ([f"--tls_cert={p.path('nope.pem')}", f"--tls_key={p.path('server.key')}"], f"--tls_cert {p.path('nope.pem')}"),
+            ([f"--tls_cert={p.path('nope.pem')}", f"--tls_key={p.path('server.key')}"],
+             f"--tls_cert {p.path('nope.pem')}"),
             ([f"--tls_cert={p.path('server.ext')}", f"--tls_key={p.path('server.key')}"], "not a PEM file"),
             ([f"--tls_client_ca={p.path('ca.pem')}"], "--tls_client_ca needs --tls_cert"),
         ]
@@ -123,7 +124,8 @@ class TokensTest(unittest.TestCase):
                 (stub.ForkSession, pb.ForkSessionRequest(session_id=sid)),
                 (stub.JoinSession, pb.JoinSessionRequest(session_id=sid, agent_ids=[1])),
                 (stub.CloseSession, pb.CloseSessionRequest(session_id=sid)),
-                (lambda r, timeout: next(stub.WatchSession(r, timeout=timeout)), pb.WatchSessionRequest(session_id=sid)),
+                (lambda r, timeout: next(stub.WatchSession(r, timeout=timeout)),
+                 pb.WatchSessionRequest(session_id=sid)),
             ]
             for fn, req in calls:
                 code, msg = error_of(fn, req, timeout=30)
