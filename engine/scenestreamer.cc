@@ -97,6 +97,10 @@ const ModelConfig& engine_model_config(const Engine& engine) { return engine.mod
 bool engine_random_weights(const Engine& engine) { return engine.random_weights; }
 int engine_map_encodes(const Engine& engine) { return engine.maps->encodes(); }
 
+absl::StatusOr<std::shared_ptr<const Scenario>> engine_scenario(Engine& engine, const SessionSource& source) {
+  return resolve(engine, source);
+}
+
 absl::StatusOr<std::unique_ptr<Session>> session_create(Engine& engine, const SessionSource& source,
                                                         const SessionOptions& options) {
   auto scenario = resolve(engine, source);

@@ -1,8 +1,9 @@
 // The engine's small public surface for programs that host it (the gRPC server): one Engine holding the model, the
 // shared map encodings and the named scenarios, and functions with shared prefixes (engine_*, session_*) to start
-// sessions from a bundled scenario or from WOMD Scenario bytes a client sent. It re-exports the Session types and the
-// whole-file reader and atomic writer (for a host's own files, e.g. snapshots), so a host includes only this header
-// from the engine (the llama.cpp pattern: a C-like facade over the internals).
+// sessions from a bundled scenario or from WOMD Scenario bytes a client sent. It re-exports the Session types, the
+// per-tick events (engine/sim/events.h) and the whole-file reader and atomic writer (for a host's own files, e.g.
+// snapshots), so a host includes only this header from the engine (the llama.cpp pattern: a C-like facade over the
+// internals).
 #pragma once
 
 #include <cstdint>
@@ -13,6 +14,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "engine/io/file_io.h"
+#include "engine/sim/events.h"
 #include "engine/sim/session.h"
 #include "engine/sim/tick.h"
 
@@ -63,6 +65,9 @@ int engine_map_encodes(const Engine& engine);
 // WOMD Scenario, RESOURCE_EXHAUSTED for a scenario above the limits, and Session::create's own errors.
 absl::StatusOr<std::unique_ptr<Session>> session_create(Engine& engine, const SessionSource& source,
                                                         const SessionOptions& options);
+// The scenario a session on `source` runs (bundled scenarios are shared; client bytes are parsed and checked against
+// the limits, with session_create's errors): for hosts that send its map to clients or measure events on it.
+absl::StatusOr<std::shared_ptr<const Scenario>> engine_scenario(Engine& engine, const SessionSource& source);
 // A session from Session::save() bytes, on the same source it was created on.
 absl::StatusOr<std::unique_ptr<Session>> session_restore(Engine& engine, const SessionSource& source,
                                                          const std::string& saved);
