@@ -18,6 +18,8 @@ absl::StatusOr<InjectRequest> inject_from_proto(const pb::InjectAgentRequest& r)
 absl::StatusOr<StateForceRequest> force_from_proto(const pb::StateForceRequest& r);
 
 void tick_to_proto(const StepResult& s, int64_t tick, pb::Tick* out);
+void events_to_proto(const std::vector<AgentEvents>& events, pb::Tick* out);
+void map_to_proto(const Scenario& s, pb::CreateSessionResponse* out);
 pb::Mode mode_to_proto(SessionMode m);
 
 }  // namespace ss::server

@@ -65,11 +65,16 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   if (source.scenario_name.empty() && source.womd_bytes.empty())
     return finish("CreateSession", r->session_id(),
                   absl::InvalidArgumentError("scenario: scenario_name or womd_scenario is empty"));
+  // The scenario's map, for the events and the client (a client's bytes are parsed here and again by the session).
+  auto scenario = engine_scenario(engine_, source);
+  if (!scenario.ok()) return finish("CreateSession", r->session_id(), scenario.status());
   std::string id;
   auto t = sessions_.create(source, *options, r->tick_hz(), r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
   if (!t.ok()) return finish("CreateSession", r->session_id(), t.status());
   out->set_session_id(id);
   tick_to_proto(t->view, t->tick, out->mutable_initial());
+  event_maps_.add(id, source.scenario_name, *scenario);
+  if (r->include_map()) map_to_proto(**scenario, out);
   return finish("CreateSession", id, absl::OkStatus());
 }
 
@@ -77,9 +82,19 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   InFlight guard(in_flight_);
   auto controls = controls_from_proto(*r);
   if (!controls.ok()) return finish("StepScene", r->session_id(), controls.status());
+  // The tick before this call's ticks: the events (a stop line crossed, progress) are measured from it.
+  auto before = sessions_.get(r->session_id());
+  if (!before.ok()) return finish("StepScene", r->session_id(), before.status());
   auto ticks = sessions_.step(r->session_id(), *controls, r->num_ticks(), deadline(ctx));
   if (!ticks.ok()) return finish("StepScene", r->session_id(), ticks.status());
-  for (const TickView& t : *ticks) tick_to_proto(t.view, t.tick, out->add_ticks());
+  const auto map = event_maps_.find(r->session_id(), before->first.scenario_name);
+  const StepResult* previous = &before->second.view;
+  for (const TickView& t : *ticks) {
+    pb::Tick* tick = out->add_ticks();
+    tick_to_proto(t.view, t.tick, tick);
+    if (map) events_to_proto(tick_events(*map, *previous, t.view), tick);
+    previous = &t.view;
+  }
   return finish("StepScene", r->session_id(), absl::OkStatus());
 }
 
@@ -102,7 +117,9 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
 }
 
 ::grpc::Status SimulatorService::CloseSession(Ctx*, const pb::CloseSessionRequest* r, pb::CloseSessionResponse*) {
-  return finish("CloseSession", r->session_id(), sessions_.close(r->session_id()));
+  const absl::Status st = sessions_.close(r->session_id());
+  if (st.ok()) event_maps_.remove(r->session_id());
+  return finish("CloseSession", r->session_id(), st);
 }
 
 ::grpc::Status SimulatorService::GetSession(Ctx*, const pb::GetSessionRequest* r, pb::GetSessionResponse* out) {
@@ -117,6 +134,7 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   InFlight guard(in_flight_);
   auto id = sessions_.fork(r->session_id(), r->new_session_id(), deadline(ctx));
   if (!id.ok()) return finish("ForkSession", r->session_id(), id.status());
+  event_maps_.fork(r->session_id(), *id);
   out->set_session_id(*id);
   return finish("ForkSession", r->session_id(), absl::OkStatus());
 }

@@ -4,6 +4,7 @@
 #include "scenestreamer/v1/simulator.grpc.pb.h"
 #include "server/metrics.h"
 #include "server/convert.h"
+#include "server/event_maps.h"
 #include "server/session_manager.h"
 
 namespace ss::server {
@@ -11,7 +12,8 @@ namespace ss::server {
 class SimulatorService final : public ::scenestreamer::v1::Simulator::Service {
  public:
   SimulatorService(Engine& engine, SessionManager& sessions, Metrics& metrics, double default_deadline_s)
-      : engine_(engine), sessions_(sessions), metrics_(metrics), default_deadline_s_(default_deadline_s) {}
+      : engine_(engine), sessions_(sessions), metrics_(metrics), default_deadline_s_(default_deadline_s),
+        event_maps_(engine) {}
 
   using Ctx = ::grpc::ServerContext;
   ::grpc::Status CreateSession(Ctx*, const pb::CreateSessionRequest*, pb::CreateSessionResponse*) override;
@@ -37,6 +39,7 @@ class SimulatorService final : public ::scenestreamer::v1::Simulator::Service {
   SessionManager& sessions_;
   Metrics& metrics_;
   double default_deadline_s_;
+  EventMaps event_maps_;
   std::atomic<int> in_flight_{0};
   struct InFlight {
     std::atomic<int>& n;
