@@ -12,11 +12,13 @@ PACKAGES="
   libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-grpcio python3-protobuf
+  python3-numpy python3-setuptools python3-wheel python3-venv
   sumo sumo-tools
   librsvg2-bin
   nginx
   libtorch-dev libopenblas0-openmp
 "
+# python3-numpy, -setuptools, -wheel and -venv: the Python package (python/), its build and its install test.
 # libtorch-dev and libopenblas0-openmp join this list with the trainer (training/), which is the only part that needs
 # them: they pull in ~330 shared libraries.
 

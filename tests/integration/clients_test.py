@@ -1,5 +1,5 @@
-"""The example clients against the real server: the Python gym-style environment (8 in parallel threads), the C++
-closed-loop client and the load generator."""
+"""The example clients against the real server: the Python example (8 environments in one vector environment), the
+C++ closed-loop client and the load generator. The Python package itself is tested in rl_env_test.py."""
 import json
 import os
 import subprocess
@@ -20,29 +20,12 @@ class ClientsTest(unittest.TestCase):
     def tearDownClass(cls):
         cls.server.stop()
 
-    def test_env_api(self):
-        from scenestreamer_env import SceneStreamerEnv, cruise
-        env = SceneStreamerEnv(self.server.target, max_steps=3)
-        obs, info = env.reset(seed=1)
-        self.assertIn("session_id", info)
-        self.assertEqual(len(obs["ego"]), 4)
-        done = False
-        n = 0
-        while not done:
-            obs, reward, terminated, truncated, info = env.step(cruise(obs))
-            self.assertIsInstance(reward, float)
-            done = terminated or truncated
-            n += 1
-        self.assertLessEqual(n, 3)
-        env.close()
-
     def test_python_example_eight_envs(self):
         r = subprocess.run([sys.executable, os.path.join(PY_CLIENT_DIR, "run_parallel_envs.py"), "--target",
                             self.server.target, "--envs", "8", "--steps", "3"], capture_output=True, text=True,
                            timeout=120)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertIn("8 environments", r.stdout)
-        self.assertIn("0 errors", r.stdout)
 
     def test_cpp_closed_loop(self):
         r = subprocess.run([os.environ["SS_CLOSED_LOOP"], "--target", self.server.target, "--steps", "3"],
