@@ -1,12 +1,11 @@
 """SceneStreamerEnv: one ego vehicle in a SceneStreamer session, with the Gymnasium Env API. The server's model drives
 the lights and every other agent and reacts to the ego each 0.5 s step; the server's engine reports the events the
 reward is built from (overlaps, off road, red lights, progress along the lane)."""
-import math
 
 import grpc
 import numpy as np
 
-from scenestreamer.client import STEP_SECONDS, advance, connect, scenario_names
+from scenestreamer.client import advance, connect, scenario_names
 from scenestreamer.observation import ObservationConfig, find_agent, observation_space, observe
 from scenestreamer.reward import RewardConfig, events_of, reward_and_termination
 from scenestreamer.road import RoadMap

@@ -5,7 +5,6 @@ repository."""
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
 import unittest
 
