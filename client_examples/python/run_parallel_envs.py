@@ -18,9 +18,10 @@ def main():
     p.add_argument("--target", default="127.0.0.1:50051")
     p.add_argument("--envs", type=int, default=8)
     p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--route", action="store_true", help="send x-session-id metadata (behind a session-affine router)")
     args = p.parse_args()
     t0 = time.time()
-    venv = SceneStreamerVectorEnv(args.envs, target=args.target, max_steps=args.steps)
+    venv = SceneStreamerVectorEnv(args.envs, target=args.target, max_steps=args.steps, route=args.route)
     try:
         obs, _ = venv.reset(seed=0)
         returns = np.zeros(args.envs)

@@ -1,5 +1,6 @@
 """The gRPC side shared by the environments: stubs, the ego's kinematics (action -> pose), scenario listing."""
 import math
+import uuid
 
 import grpc
 
@@ -7,12 +8,35 @@ from scenestreamer.v1 import simulator_pb2 as pb
 from scenestreamer.v1 import simulator_pb2_grpc as rpc
 
 STEP_SECONDS = 0.5  # the model's 2 Hz step: one env step is one server tick at tick_hz 2
+SESSION_ID_HEADER = "x-session-id"  # what the session-affine routers hash (deploy/router/)
 
 
-def connect(target, channel=None):
-    """A SimulatorStub on `channel`, or on a new insecure channel to `target` ("host:port")."""
+class _Route(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInterceptor):
+    """Sends each call's session id as x-session-id metadata, CreateSession included (it proposes a fresh id when the
+    request has none), so a session-affine router sends every call of a session to the replica that holds it. A fork
+    routes by its source's id, where the fork is made."""
+
+    def _route(self, continuation, details, request):
+        sid = getattr(request, "session_id", "")
+        if isinstance(request, pb.CreateSessionRequest) and not sid:
+            proposed = pb.CreateSessionRequest()
+            proposed.CopyFrom(request)
+            proposed.session_id = sid = uuid.uuid4().hex
+            request = proposed
+        if sid:
+            details = details._replace(metadata=tuple(details.metadata or ()) + ((SESSION_ID_HEADER, sid),))
+        return continuation(details, request)
+
+    intercept_unary_unary = _route
+    intercept_unary_stream = _route
+
+
+def connect(target, channel=None, route=False):
+    """A SimulatorStub on `channel`, or on a new insecure channel to `target` ("host:port"). route: send x-session-id
+    metadata on every call (behind deploy/router/)."""
     channel = channel or grpc.insecure_channel(target)
-    return channel, rpc.SimulatorStub(channel)
+    stub_channel = grpc.intercept_channel(channel, _Route()) if route else channel
+    return channel, rpc.SimulatorStub(stub_channel)
 
 
 def scenario_names(stub, timeout=60.0):

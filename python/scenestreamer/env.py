@@ -34,18 +34,19 @@ class SceneStreamerEnv(Env):
 
     target: the server ("host:port"); scenarios: bundled scenario names to draw from (default: all the server lists);
     max_steps: episode length in 0.5 s steps (truncation); mode: "motion", "full" or "densify"; observation /
-    reward: ObservationConfig / RewardConfig; channel: a grpc channel to share (the env then does not close it).
+    reward: ObservationConfig / RewardConfig; channel: a grpc channel to share (the env then does not close it);
+    route: send each session's id as x-session-id metadata on every call (behind a router of deploy/router/).
     options of reset: {"scenario": name} picks the scenario instead of drawing one.
     The same seed gives the same scenario, the same session seed, and so the same episode for the same actions."""
 
     metadata = {"render_modes": []}
 
     def __init__(self, target="127.0.0.1:50051", scenarios=None, max_steps=80, mode="motion", observation=None,
-                 reward=None, channel=None, timeout=60.0, roads=None):
+                 reward=None, channel=None, timeout=60.0, roads=None, route=False):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r}: expected one of {sorted(MODES)}")
         self._own_channel = channel is None
-        self.channel, self.stub = connect(target, channel)
+        self.channel, self.stub = connect(target, channel, route)
         self.scenarios = list(scenarios) if scenarios else None
         self.max_steps = int(max_steps)
         self.mode = mode

@@ -24,11 +24,11 @@ class SceneStreamerParallelEnv:
     metadata = {"name": "scenestreamer_parallel_v0", "render_modes": []}
 
     def __init__(self, target="127.0.0.1:50051", scenario=None, agent_ids=None, num_agents=2, max_steps=80,
-                 mode="motion", observation=None, reward=None, channel=None, timeout=60.0):
+                 mode="motion", observation=None, reward=None, channel=None, timeout=60.0, route=False):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r}: expected one of {sorted(MODES)}")
         self._own_channel = channel is None
-        self.channel, self.stub = connect(target, channel)
+        self.channel, self.stub = connect(target, channel, route)
         self.timeout = timeout
         self.scenario = scenario or scenario_names(self.stub, timeout)[0]
         self.mode = mode

@@ -37,13 +37,13 @@ def _batch_infos(infos):
 class SceneStreamerVectorEnv:
     metadata = {"autoreset_mode": "same-step"}
 
-    def __init__(self, num_envs, target="127.0.0.1:50051", channel=None, **env_kwargs):
+    def __init__(self, num_envs, target="127.0.0.1:50051", channel=None, route=False, **env_kwargs):
         if num_envs < 1:
             raise ValueError(f"num_envs {num_envs}: at least 1")
         self._own_channel = channel is None
-        self.channel, self.stub = connect(target, channel)
+        self.channel, self.stub = connect(target, channel, route)
         roads = {}  # one map per scenario for all the sub-environments
-        self.envs = [SceneStreamerEnv(target, channel=self.channel, roads=roads, **env_kwargs)
+        self.envs = [SceneStreamerEnv(target, channel=self.channel, roads=roads, route=route, **env_kwargs)
                      for _ in range(num_envs)]
         self.num_envs = num_envs
         self.single_observation_space = self.envs[0].observation_space
