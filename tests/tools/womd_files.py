@@ -39,3 +39,36 @@ def scenarios(path, scenario_pb2):
         s.ParseFromString(r)
         out.append(s)
     return out
+
+
+def _crc_table():
+    table = []
+    for n in range(256):
+        c = n
+        for _ in range(8):
+            c = (c >> 1) ^ (0x82F63B78 if c & 1 else 0)
+        table.append(c)
+    return table
+
+
+_TABLE = _crc_table()
+
+
+def _crc32c(data):
+    crc = 0xFFFFFFFF
+    for b in data:
+        crc = _TABLE[(crc ^ b) & 0xFF] ^ (crc >> 8)
+    return crc ^ 0xFFFFFFFF
+
+
+def _masked_crc(data):
+    c = _crc32c(data)
+    return (((c >> 15) | (c << 17)) + 0xA282EAD8) & 0xFFFFFFFF
+
+
+def write_tfrecord(path, records):
+    """Writes records with TFRecord framing (masked CRC-32C of the length and of the data)."""
+    with open(path, "wb") as f:
+        for r in records:
+            n = struct.pack("<Q", len(r))
+            f.write(n + struct.pack("<I", _masked_crc(n)) + r + struct.pack("<I", _masked_crc(r)))
