@@ -18,6 +18,7 @@ from server_process import Server
 
 SOURCE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 NGINX_CONF = os.path.join(SOURCE_DIR, "deploy", "router", "nginx.conf")
+HAPROXY_CFG = os.path.join(SOURCE_DIR, "deploy", "router", "haproxy.cfg")
 UPSTREAM = re.compile(r"server scenestreamer-(\d+)\.scenestreamer:50051\b")
 LISTEN = re.compile(r"listen 8080 http2;")
 ROUTE = "x-session-id"
@@ -41,6 +42,21 @@ def render_nginx(upstreams, listen_port):
     text, n = LISTEN.subn(f"listen 127.0.0.1:{listen_port} http2;", text)
     if n != 1:
         raise RuntimeError(f"{NGINX_CONF}: expected one 'listen 8080 http2;', found {n}")
+    return text
+
+
+def render_haproxy(upstreams, listen_port):
+    """deploy/router/haproxy.cfg with its server addresses and bind port replaced (and nothing else)."""
+    with open(HAPROXY_CFG) as f:
+        text = f.read()
+    found = [int(i) for i in re.findall(r"server scenestreamer-(\d+) scenestreamer-\d+\.scenestreamer:50051\b", text)]
+    if found != list(range(len(upstreams))):
+        raise RuntimeError(f"{HAPROXY_CFG}: expected servers scenestreamer-0..{len(upstreams) - 1}, found {found}")
+    text = re.sub(r"(server scenestreamer-(\d+)) scenestreamer-\d+\.scenestreamer:50051\b",
+                  lambda m: f"{m.group(1)} {upstreams[int(m.group(2))]}", text)
+    text, n = re.subn(r"bind :8080 ", f"bind 127.0.0.1:{listen_port} ", text)
+    if n != 1:
+        raise RuntimeError(f"{HAPROXY_CFG}: expected one 'bind :8080', found {n}")
     return text
 
 
@@ -109,6 +125,17 @@ class Cluster:
     def router_output(self):
         with open(os.path.join(self.dir, "router", "nginx.log")) as f:
             return f.read()
+
+    def start_haproxy(self):
+        """HAProxy with deploy/router/haproxy.cfg in front of the same replicas; returns (process, target)."""
+        port = free_port()
+        cfg = os.path.join(self.dir, "haproxy.cfg")
+        with open(cfg, "w") as f:
+            f.write(render_haproxy([f"127.0.0.1:{p}" for p in self.ports], port))
+        log = open(os.path.join(self.dir, "haproxy.log"), "w")
+        proc = subprocess.Popen(["haproxy", "-db", "-f", cfg], stdout=log, stderr=subprocess.STDOUT)
+        log.close()
+        return proc, f"127.0.0.1:{port}"
 
     def holder(self, session_id):
         """Indexes of the replicas that hold the session (asked directly, not through the router)."""

@@ -12,6 +12,7 @@ import grpc
 
 from cluster import Cluster, routed
 from scenestreamer.v1 import simulator_pb2 as pb
+from scenestreamer.v1 import simulator_pb2_grpc as rpc
 from server_process import ego_pose
 
 C = grpc.StatusCode
@@ -58,6 +59,38 @@ class ClusterTest(unittest.TestCase):
                 break
         self.assertIn(replica, where.values(), "64 random ids never hashed to one replica")
         return ticks, where
+
+    def test_0_haproxy_routes_by_session_too(self):
+        # deploy/router/haproxy.cfg, the same rule for HAProxy users: each routed session lives on one replica and
+        # all its calls reach it.
+        proc, target = self.cluster.start_haproxy()
+        try:
+            channel = grpc.insecure_channel(target)
+            stub = rpc.SimulatorStub(channel)
+            deadline = time.time() + 30
+            while True:
+                try:
+                    stub.ListScenarios(pb.ListScenariosRequest(), timeout=5)
+                    break
+                except grpc.RpcError:
+                    self.assertLess(time.time(), deadline, "haproxy did not start")
+                    time.sleep(0.2)
+            r = subprocess.run([os.environ["SS_LOAD"], "--clients", "12", "--steps", "2", "--target", target,
+                                "--scenario", self.name, "--route", "--json"], capture_output=True, text=True,
+                               timeout=600)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            self.assertEqual(json.loads(r.stdout)["errors"], 0)
+            sid = "haproxy-kept"
+            tick = step(stub, sid, create(stub, self.name, sid, 1).initial)
+            for _ in range(2):
+                tick = step(stub, sid, tick)
+            self.assertEqual(tick.tick, 3)
+            self.assertEqual(len(self.cluster.holder(sid)), 1)
+            stub.CloseSession(pb.CloseSessionRequest(session_id=sid), metadata=routed(sid), timeout=60)
+            channel.close()
+        finally:
+            proc.terminate()
+            proc.wait(30)
 
     def test_1_load_through_router_one_replica_per_session(self):
         load = os.environ["SS_LOAD"]
