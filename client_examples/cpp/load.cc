@@ -99,10 +99,10 @@ int main(int argc, char** argv) {
                 "\"latency_ms_p50\": %.2f, \"latency_ms_p99\": %.2f%s%s%s}\n",
                 clients, steps, errors.load(), sps, pct(0.5), pct(0.99), route ? ", \"session_ids\": [" : "",
                 ids.c_str(), route ? "]" : "");
-  }
-  else
+  } else {
     std::printf("%d clients x %d steps on %s: %.2f steps/s, latency p50 %.1f ms, p99 %.1f ms, %d errors%s%s\n",
                 clients, steps, scenario.c_str(), sps, pct(0.5), pct(0.99), errors.load(),
                 first_error.empty() ? "" : "; first: ", first_error.c_str());
+  }
   return errors ? 1 : 0;
 }
