@@ -48,8 +48,9 @@ class ClientsTest(unittest.TestCase):
         self.assertLessEqual(out["latency_ms_p50"], out["latency_ms_p99"])
 
     def test_routing_metadata(self):
-        # What a session-affine router needs: the client proposes the id and sends it as x-session-id on every call.
-        from scenestreamer_env import SceneStreamerEnv, cruise
+        # What a session-affine router needs: with route=True the Python package proposes the id and sends it as
+        # x-session-id on every call, CreateSession included, and the server keeps that id.
+        from scenestreamer.client import connect
         seen = []
 
         class Recorder(grpc.UnaryUnaryClientInterceptor):
@@ -58,15 +59,13 @@ class ClientsTest(unittest.TestCase):
                              getattr(request, "session_id", None)))
                 return continuation(details, request)
 
-        channel = grpc.intercept_channel(grpc.insecure_channel(self.server.target), Recorder())
-        env = SceneStreamerEnv(channel=channel, max_steps=2, route=True)
-        obs, info = env.reset(seed=2)
-        env.step(cruise(obs))
-        env.close()
-        sid = info["session_id"]
+        recorded = grpc.intercept_channel(grpc.insecure_channel(self.server.target), Recorder())
+        _, routed = connect(None, recorded, route=True)
+        name = routed.ListScenarios(pb.ListScenariosRequest()).scenarios[0].name
+        sid = routed.CreateSession(pb.CreateSessionRequest(scenario_name=name)).session_id
+        routed.CloseSession(pb.CloseSessionRequest(session_id=sid))
         self.assertRegex(sid, r"^[0-9a-f]{32}$")
-        self.assertEqual([m for m in seen if m[0] != "ListScenarios"],
-                         [("CreateSession", sid, sid), ("StepScene", sid, sid), ("CloseSession", sid, sid)])
+        self.assertEqual(seen[1:], [("CreateSession", sid, sid), ("CloseSession", sid, sid)])
         # The server takes the metadata's id when the request proposes none, and refuses two ids that differ.
         stub = self.server.stub
         name = stub.ListScenarios(pb.ListScenariosRequest()).scenarios[0].name
