@@ -6,9 +6,11 @@ JOBS       ?= $(shell nproc)
 # Seconds each fuzz target runs: briefly under `make test`, longer under `make fuzz`.
 FUZZ_SECONDS ?= 20
 FUZZ_LONG_SECONDS ?= 600
+# The CMake options of every build: `make build` and the image's build stage (Dockerfile; tests/deploy checks it).
+CMAKE_OPTIONS = -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
 SERVE_DATA ?= $(firstword $(wildcard data/*.tfrecord* data/*.json) ../shared/data/womd/tfrecord)
 
-.PHONY: all deps build test unit-test fuzz-build fuzz serve clean train-default
+.PHONY: all deps build test unit-test fuzz-build fuzz serve clean train-default image image-test soak
 
 all: build
 
@@ -16,7 +18,7 @@ deps:
 	./deploy/install-deps.sh
 
 build: deps
-	cmake -S . -B $(BUILD) -G Ninja
+	cmake -S . -B $(BUILD) $(CMAKE_OPTIONS)
 	cmake --build $(BUILD) -j $(JOBS)
 
 fuzz-build: deps
@@ -36,6 +38,26 @@ fuzz:
 # The gRPC server with its defaults: the bundled model (or random weights, loudly), the bundled scenarios, port 50051.
 serve: build
 	$(BUILD)/server/scenestreamer-server
+
+# The container image (Dockerfile) built with buildah, no registry needed: the debian:bookworm base is made by
+# debootstrap from the Debian archive apt uses (deploy/image/debian-base.sh). IMAGE_NATIVE=ON builds for this CPU.
+IMAGE        ?= localhost/scenestreamer:latest
+IMAGE_NATIVE ?= OFF
+image:
+	./deploy/install-deps.sh image
+	./deploy/image/debian-base.sh
+	buildah bud --isolation chroot --layers --pull=never --format docker --build-arg NATIVE=$(IMAGE_NATIVE) \
+	  -t $(IMAGE) .
+
+# The image's server (buildah run, host network, a loopback port) driven by the load generator and the image's own
+# health probe.
+image-test: build
+	./deploy/image/image-test.sh $(IMAGE) $(BUILD)/client_examples/scenestreamer-load
+
+# 30 minutes of steady load through the router on 3 loopback replicas (tests/integration/cluster_soak.py).
+SOAK_MINUTES ?= 30
+soak: build
+	SS_SOAK_MINUTES=$(SOAK_MINUTES) ctest --test-dir $(BUILD) -C soak -R '^integration.cluster_soak$$' -V
 
 # The default model (models/default.safetensors), reproduced from scratch: 300 SUMO scenarios, then the trainer on
 # the real train split plus them (hours on 2 cores; stop it any time and run it again: it resumes from its

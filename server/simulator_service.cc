@@ -68,9 +68,21 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   // The scenario's map, for the events and the client (a client's bytes are parsed here and again by the session).
   auto scenario = engine_scenario(engine_, source);
   if (!scenario.ok()) return finish("CreateSession", r->session_id(), scenario.status());
+  // A router hashes the x-session-id metadata before the session exists, so the id it routed by is the session's:
+  // it stands in for an empty session_id, and one that differs from session_id would strand the session.
+  std::string proposed = r->session_id();
+  if (const auto m = ctx->client_metadata().find("x-session-id"); m != ctx->client_metadata().end()) {
+    const std::string routed(m->second.data(), m->second.size());
+    if (proposed.empty()) proposed = routed;
+    else if (routed != proposed)
+      return finish("CreateSession", proposed,
+                    absl::InvalidArgumentError(absl::StrCat("session_id '", proposed.substr(0, 64),
+                                                            "' differs from the x-session-id metadata '",
+                                                            routed.substr(0, 64), "' the call was routed by")));
+  }
   std::string id;
-  auto t = sessions_.create(source, *options, r->tick_hz(), r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
-  if (!t.ok()) return finish("CreateSession", r->session_id(), t.status());
+  auto t = sessions_.create(source, *options, r->tick_hz(), r->tick_deadline_ms(), proposed, deadline(ctx), &id);
+  if (!t.ok()) return finish("CreateSession", proposed, t.status());
   out->set_session_id(id);
   tick_to_proto(t->view, t->tick, out->mutable_initial());
   event_maps_.add(id, source.scenario_name, *scenario);
