@@ -64,7 +64,10 @@ absl::StatusOr<SubmissionMetadata> read_submission_metadata(const std::string& p
       {"uses_camera_data", &m.uses_camera_data},
       {"uses_public_model_pretraining", &m.uses_public_model_pretraining},
       {"acknowledge_complies_with_closed_loop_requirement", &m.acknowledge_complies_with_closed_loop_requirement}};
-  for (const auto& [key, value] : j.items()) {
+  for (const auto& item : j.items()) {
+    // Named copies, not a structured binding: clang 14 (the fuzz build) cannot capture bindings in a lambda.
+    const std::string& key = item.key();
+    const auto& value = item.value();
     auto wrong = [&](const char* type) {
       return absl::InvalidArgumentError(absl::StrCat(path, ": \"", key, "\" must be ", type));
     };
