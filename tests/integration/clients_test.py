@@ -9,20 +9,12 @@ import unittest
 import grpc
 
 from scenestreamer.v1 import simulator_pb2 as pb
-from server_process import Server
+from server_process import ServerTestCase
 
 PY_CLIENT_DIR = os.environ["SS_PY_CLIENT_DIR"]
 
 
-class ClientsTest(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.server = Server().start()
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.server.stop()
-
+class ClientsTest(ServerTestCase):
     def test_python_example_eight_envs(self):
         r = subprocess.run([sys.executable, os.path.join(PY_CLIENT_DIR, "run_parallel_envs.py"), "--target",
                             self.server.target, "--envs", "8", "--steps", "3"], capture_output=True, text=True,

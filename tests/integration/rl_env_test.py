@@ -13,7 +13,7 @@ import numpy as np
 from scenestreamer import (HAVE_GYMNASIUM, RewardConfig, SceneStreamerEnv, SceneStreamerParallelEnv,
                            SceneStreamerVectorEnv, cruise)
 from scenestreamer.v1 import simulator_pb2 as pb
-from server_process import Server
+from server_process import ServerTestCase
 
 
 class CallLog(grpc.UnaryUnaryClientInterceptor):
@@ -44,15 +44,7 @@ def assert_obs_equal(test, a, b):
         np.testing.assert_array_equal(a[k], b[k], err_msg=k)
 
 
-class EnvTest(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.server = Server().start()
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.server.stop()
-
+class EnvTest(ServerTestCase):
     def sessions(self):
         return {s.session_id for s in self.server.stub.ListSessions(pb.ListSessionsRequest()).sessions}
 
@@ -237,19 +229,15 @@ def point_segment_distance(p, a, b):
     return np.linalg.norm(p[:, None, :] - closest, axis=2)
 
 
-class EventsTest(unittest.TestCase):
+class EventsTest(ServerTestCase):
     """A scripted ego (StateForce to put it somewhere, then poses a few metres apart) gets each event at exactly the
     tick it happens."""
 
     @classmethod
     def setUpClass(cls):
-        cls.server = Server().start()
+        super().setUpClass()
         cls.stub = cls.server.stub
         cls.names = [s.name for s in cls.stub.ListScenarios(pb.ListScenariosRequest()).scenarios]
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.server.stop()
 
     def start(self, name):
         r = self.stub.CreateSession(pb.CreateSessionRequest(scenario_name=name, seed=1, include_map=True))
