@@ -8,6 +8,7 @@
 #include "engine/eval/model_rollout.h"
 #include "engine/eval/scene_features.h"
 #include "engine/eval/submission.h"
+#include "engine/map/focus.h"
 
 namespace ss {
 namespace {
@@ -155,6 +156,12 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     const std::vector<InitialAgent> log_initial = log_initial_agents(s);
     const std::vector<InitialAgent> log_strict = strict_set(log_initial, frame, s);
     MmdMean strict, relaxed;
+    // The session's region: around the SDC when it is the controlled agent (--sdc log), else the scenario's focus
+    // (session_create.cc); under --sdc model the model makes a stand-in for the SDC too, so the log's side counts it.
+    const bool sdc_controlled = options.sdc == SdcRule::log && s.sdc_track_index >= 0;
+    const ObjectState* sdc_now = sdc_controlled ? &s.tracks[s.sdc_track_index].states[now] : nullptr;
+    const Vec2 centre = sdc_now ? Vec2{sdc_now->x, sdc_now->y} : scenario_focus(s);
+    if (full) out.placed_log = log_placed_agents(s, map.road_edges, centre, options.session.roi_radius, !sdc_controlled);
     int driven = 0, filled = 0;
     double match_total = 0;
     for (int k = 0; k < options.rollouts; ++k) {
@@ -171,6 +178,9 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
         const std::vector<InitialAgent> gen = generated_initial_agents(steps->front());
         relaxed.add(initial_state_mmd(gen, log_initial, frame));
         strict.add(initial_state_mmd(strict_set(gen, frame, s), log_strict, frame));
+        const PlacedAgents p = placed_agents(gen, {}, s, map.road_edges);
+        out.placed_generated.agents += p.agents, out.placed_generated.vehicles += p.vehicles;
+        out.placed_generated.offroad_vehicles += p.offroad_vehicles;
       }
       sims.push_back(scene_features(r.scene, evaluated, map, now, &log, evaluated));
       rollouts.push_back(std::move(r.scene));
@@ -180,6 +190,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     if (full) out.has_mmd = true, out.mmd_strict = strict.mean(), out.mmd_relaxed = relaxed.mean();
   }
 
+  out.rollouts = static_cast<int>(rollouts.size());
   out.realism = score_realism(log_features, sims, types);
   for (const FrameWindow& w : realism_windows(out.future_frames))
     out.windows.push_back(score_realism(log_features, sims, types, w));

@@ -12,6 +12,7 @@
 #include "engine/eval/meta_metric.h"
 #include "engine/eval/mmd.h"
 #include "engine/eval/motion_metrics.h"
+#include "engine/eval/placed_agents.h"
 #include "engine/sim/map_cache.h"
 #include "engine/sim/session.h"
 
@@ -55,6 +56,7 @@ struct ScenarioEvaluation {
   int64_t sdc_id = -1;             // the SDC's object id; -1 when the scenario names none
   std::vector<int64_t> evaluated_ids;  // the evaluated objects' ids, in WOSAC's order
   int future_frames = 0;           // frames after the current one (80 in a 91-frame WOMD scenario)
+  int rollouts = 0;                // rollouts scored
   RealismScores realism;           // over the whole future
   std::vector<RealismScores> windows;  // per realism_windows(future_frames)
   MotionMetrics motion_all;        // every sim agent (but the SDC under SdcRule::log)
@@ -66,6 +68,9 @@ struct ScenarioEvaluation {
                                    // (the rest, 1 - filled_share, is the share the model drove)
   int to_match = 0, matched = 0;   // full mode, summed over rollouts: tracks to stand in for, and paired
   double match_distance = 0;       // full mode: mean distance of the pairs at the current frame
+  // Full mode: the log's agents in the session's region at the current frame, and the agents the model placed at
+  // its first step, summed over the rollouts.
+  PlacedAgents placed_log, placed_generated;
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // continuous features only
 };
 
