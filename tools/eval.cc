@@ -3,6 +3,7 @@
 // scenestreamer eval --data FILE_OR_DIR... --submission FILE_OR_DIR --json OUT
 // scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT]
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <type_traits>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -34,6 +36,7 @@ constexpr const char* kUsage =
     "usage: scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --json OUT.json\n"
     "                          ([--model WEIGHTS] [--mode motion|full] | --baseline cv|log)\n"
     "                          [--sdc model|log] [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
+    "                          [--top-p P] [--temperature T]\n"
     "                          [--wosac-submission DIR [--submission-metadata FILE.json]]\n"
     "       scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --submission FILE_OR_DIR --json OUT.json\n"
     "       scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT.json]\n"
@@ -52,6 +55,7 @@ constexpr const char* kUsage =
     "                to stderr)\n"
     "  --plots DIR   SVG histograms of each feature, log vs rollouts\n"
     "  --threads N   worker threads (default: the hardware's)\n"
+    "  --top-p P, --temperature T  the model's sampling (as a session's; defaults 0.95 and 1.0)\n"
     "  --wosac-submission DIR  also write the rollouts as a Waymo Open Sim Agents Challenge submission\n"
     "                (DIR/submission.binproto-00000-of-0000N, 32 scenarios per shard): every agent valid at the\n"
     "                current frame, x, y, z, heading at 10 Hz after it; motion mode or --baseline cv, --sdc model.\n"
@@ -75,13 +79,18 @@ int fail(const std::string& msg) {
 template <typename T>
 bool parse_number(const Args& args, const char* flag, T* out) {
   if (!args.has(flag)) return true;
-  if (absl::SimpleAtoi(args.get(flag), out)) return true;
-  std::fprintf(stderr, "eval: --%s '%s' is not a whole number\n", flag, args.get(flag).c_str());
+  if constexpr (std::is_floating_point_v<T>) {
+    if (absl::SimpleAtod(args.get(flag), out)) return true;
+  } else if (absl::SimpleAtoi(args.get(flag), out)) {
+    return true;
+  }
+  std::fprintf(stderr, "eval: --%s '%s' is not a %s\n", flag, args.get(flag).c_str(),
+               std::is_floating_point_v<T> ? "number" : "whole number");
   return false;
 }
 
 int compare_main(const Args& args) {
-  for (const char* flag : {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads"})
+  for (const char* flag : {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads", "top-p", "temperature"})
     if (args.has(flag)) return fail(absl::StrCat("--compare takes two result files: --", flag, " does not apply"));
   if (args.positional.size() != 1)
     return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + args.positional.size()));
@@ -109,7 +118,8 @@ int compare_main(const Args& args) {
 int eval_main(int argc, char** argv) {
   auto args = parse_args(argc, argv, 1,
                          {"data", "model", "mode", "rollouts", "seed", "baseline", "sdc", "json", "plots", "threads",
-                          "compare", "bootstrap", "wosac-submission", "submission-metadata", "submission"},
+                          "compare", "bootstrap", "wosac-submission", "submission-metadata", "submission", "top-p",
+                          "temperature"},
                          {"help"});
   if (args.ok() && !args->has("help") && args->has("compare")) return compare_main(*args);
   if (args.ok() && args->has("bootstrap") && !args->has("help")) return fail("--bootstrap goes with --compare");
@@ -130,10 +140,12 @@ int eval_main(int argc, char** argv) {
     if (b == "cv") options.policy = EvalPolicy::constant_velocity;
     else if (b == "log") options.policy = EvalPolicy::log_replay;
     else return fail("--baseline '" + b + "' is not cv or log");
-    if (args->has("model") || args->has("mode")) return fail("--baseline runs without a model: drop --model and --mode");
+    for (const char* flag : {"model", "mode", "top-p", "temperature"})
+      if (args->has(flag)) return fail(absl::StrCat("--baseline runs without a model: drop --", flag));
   }
   if (args->has("submission")) {
-    for (const char* flag : {"baseline", "model", "mode", "rollouts", "seed", "wosac-submission", "submission-metadata"})
+    for (const char* flag : {"baseline", "model", "mode", "rollouts", "seed", "wosac-submission", "submission-metadata",
+                             "top-p", "temperature"})
       if (args->has(flag))
         return fail(absl::StrCat("--submission scores the rollouts it holds: --", flag, " does not apply"));
     if (args->get("sdc", "model") != "model")
@@ -165,8 +177,12 @@ int eval_main(int argc, char** argv) {
   else return fail("--mode '" + mode + "' is not motion or full");
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (!parse_number(*args, "rollouts", &options.rollouts) || !parse_number(*args, "seed", &options.session.seed) ||
-      !parse_number(*args, "threads", &threads))
+      !parse_number(*args, "threads", &threads) || !parse_number(*args, "top-p", &options.session.top_p) ||
+      !parse_number(*args, "temperature", &options.session.temperature))
     return 2;
+  if (!(options.session.top_p > 0 && options.session.top_p <= 1)) return fail("--top-p must be in (0, 1]");
+  if (!(options.session.temperature > 0) || !std::isfinite(options.session.temperature))
+    return fail("--temperature must be positive");
   if (options.rollouts < 1 || options.rollouts > 1024) return fail("--rollouts must be in 1..1024");
   if (threads < 1 || threads > 1024) return fail("--threads must be in 1..1024");
 
@@ -301,6 +317,7 @@ int eval_main(int argc, char** argv) {
   run.mode = options.session.mode;
   run.rollouts = options.rollouts;
   run.seed = options.session.seed;
+  run.top_p = options.session.top_p, run.temperature = options.session.temperature;
   const std::string json = eval_json(run, d, evaluations).dump(2) + "\n";
   const std::string out = args->get("json");
   if (out == "-") {
