@@ -27,10 +27,12 @@ ALL="$BUILD
   librsvg2-bin
   nginx haproxy yamllint python3-yaml
   libtorch-dev libopenblas0-openmp
+  python3-torch
 "
 # python3-numpy, -setuptools, -wheel and -venv: the Python package (python/), its build and its install test.
 # libtorch-dev and libopenblas0-openmp join this list with the trainer (training/), which is the only part that needs
-# them: they pull in ~330 shared libraries. nginx and haproxy are the session-affine routers (deploy/router/), run by
+# them: they pull in ~330 shared libraries. python3-torch (on top of libtorch): the PPO example
+# (client_examples/python/ppo.py) and its test. nginx and haproxy are the session-affine routers (deploy/router/), run by
 # the cluster test; yamllint checks deploy/k8s/.
 IMAGE="buildah debootstrap"
 

@@ -39,9 +39,11 @@ def connect(target, channel=None, route=False):
     return channel, rpc.SimulatorStub(stub_channel)
 
 
-def scenario_names(stub, timeout=60.0):
-    """The server's bundled scenarios, in its order."""
-    return [s.name for s in stub.ListScenarios(pb.ListScenariosRequest(), timeout=timeout).scenarios]
+def scenario_names(stub, timeout=60.0, with_sdc=False):
+    """The server's bundled scenarios, in its order; with_sdc: only those with an SDC (the ego of an env: a scenario
+    without one, as some WOMD JSON files are, cannot be driven)."""
+    listed = stub.ListScenarios(pb.ListScenariosRequest(), timeout=timeout).scenarios
+    return [s.name for s in listed if s.has_sdc or not with_sdc]
 
 
 def speed_of(state):

@@ -32,7 +32,8 @@ def check_action(action, where="action"):
 class SceneStreamerEnv(Env):
     """reset(seed, options) -> (obs, info); step(action) -> (obs, reward, terminated, truncated, info).
 
-    target: the server ("host:port"); scenarios: bundled scenario names to draw from (default: all the server lists);
+    target: the server ("host:port"); scenarios: bundled scenario names to draw from (default: all the server lists
+    that have an SDC, the ego);
     max_steps: episode length in 0.5 s steps (truncation); mode: "motion", "full" or "densify"; observation /
     reward: ObservationConfig / RewardConfig; channel: a grpc channel to share (the env then does not close it);
     route: send each session's id as x-session-id metadata on every call (behind a router of deploy/router/).
@@ -66,9 +67,10 @@ class SceneStreamerEnv(Env):
     # The request/response halves below let the vector env send many envs' calls at once.
     def _create_request(self, options):
         if self.scenarios is None:
-            self.scenarios = scenario_names(self.stub, self.timeout)
+            self.scenarios = scenario_names(self.stub, self.timeout, with_sdc=True)
             if not self.scenarios:
-                raise RuntimeError("the server lists no bundled scenario: pass scenarios= or start it with some")
+                raise RuntimeError("the server lists no bundled scenario with an SDC: pass scenarios= or start it "
+                                   "with some")
         name = (options or {}).get("scenario")
         if name is None:
             name = self.scenarios[int(self.np_random.integers(len(self.scenarios)))]

@@ -30,7 +30,7 @@ class SceneStreamerParallelEnv:
         self._own_channel = channel is None
         self.channel, self.stub = connect(target, channel, route)
         self.timeout = timeout
-        self.scenario = scenario or scenario_names(self.stub, timeout)[0]
+        self.scenario = scenario or scenario_names(self.stub, timeout, with_sdc=True)[0]
         self.mode = mode
         self.max_steps = int(max_steps)
         self.observation_config = observation or ObservationConfig()

@@ -60,9 +60,10 @@ class SceneStreamerVectorEnv:
         for i in indices:
             self.envs[i].session_id = None
         if self.envs[0].scenarios is None:  # the server's list, asked once for every env
-            names = scenario_names(self.stub, self.timeout)
+            names = scenario_names(self.stub, self.timeout, with_sdc=True)
             if not names:
-                raise RuntimeError("the server lists no bundled scenario: pass scenarios= or start it with some")
+                raise RuntimeError("the server lists no bundled scenario with an SDC: pass scenarios= or start it "
+                                   "with some")
             for e in self.envs:
                 e.scenarios = names
         requests = [self.envs[i]._create_request(options) for i in indices]

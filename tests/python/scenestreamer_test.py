@@ -6,7 +6,7 @@ import unittest
 import numpy as np
 
 from scenestreamer import RewardConfig
-from scenestreamer.client import advance
+from scenestreamer.client import advance, scenario_names
 from scenestreamer.observation import ObservationConfig, observation_space, observe
 from scenestreamer.reward import reward_and_termination
 from scenestreamer.road import RoadMap
@@ -83,6 +83,18 @@ class ObservationTest(unittest.TestCase):
     def test_unknown_ego(self):
         with self.assertRaisesRegex(KeyError, "agent 9"):
             observe(pb.Tick(agents=[agent(1, 0, 0, 0)]), 9, self.road, self.config)
+
+
+class ScenarioNamesTest(unittest.TestCase):
+    def test_only_scenarios_with_an_sdc_can_be_drawn(self):
+        class Stub:  # ListScenarios as the server answers it: some WOMD JSON scenarios have no SDC
+            def ListScenarios(self, request, timeout=None):
+                return pb.ListScenariosResponse(scenarios=[pb.ScenarioInfo(name="a", has_sdc=True),
+                                                           pb.ScenarioInfo(name="b", has_sdc=False),
+                                                           pb.ScenarioInfo(name="c", has_sdc=True)])
+
+        self.assertEqual(scenario_names(Stub()), ["a", "b", "c"])
+        self.assertEqual(scenario_names(Stub(), with_sdc=True), ["a", "c"])
 
 
 class KinematicsAndRewardTest(unittest.TestCase):
