@@ -55,7 +55,7 @@ constexpr const char* kUsage =
     "                to stderr)\n"
     "  --plots DIR   SVG histograms of each feature, log vs rollouts\n"
     "  --threads N   worker threads (default: the hardware's)\n"
-    "  --top-p P, --temperature T  the model's sampling (as a session's; defaults 0.95 and 1.0)\n"
+    "  --top-p P, --temperature T  the model's sampling (as a session's; defaults 0.8 and 0.7)\n"
     "  --wosac-submission DIR  also write the rollouts as a Waymo Open Sim Agents Challenge submission\n"
     "                (DIR/submission.binproto-00000-of-0000N, 32 scenarios per shard): every agent valid at the\n"
     "                current frame, x, y, z, heading at 10 Hz after it; motion mode or --baseline cv, --sdc model.\n"
