@@ -90,7 +90,8 @@ bool parse_number(const Args& args, const char* flag, T* out) {
 }
 
 int compare_main(const Args& args) {
-  for (const char* flag : {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads", "top-p", "temperature"})
+  for (const char* flag :
+       {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads", "top-p", "temperature"})
     if (args.has(flag)) return fail(absl::StrCat("--compare takes two result files: --", flag, " does not apply"));
   if (args.positional.size() != 1)
     return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + args.positional.size()));

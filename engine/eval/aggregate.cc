@@ -79,7 +79,8 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
     d.to_match += s.to_match, d.matched += s.matched;
     d.match_distance += s.match_distance * s.matched;
     if (s.has_mmd) {
-      for (auto [sum, add] : {std::pair{&d.placed_log, &s.placed_log}, std::pair{&d.placed_generated, &s.placed_generated}})
+      for (auto [sum, add] :
+           {std::pair{&d.placed_log, &s.placed_log}, std::pair{&d.placed_generated, &s.placed_generated}})
         sum->agents += add->agents, sum->vehicles += add->vehicles, sum->offroad_vehicles += add->offroad_vehicles;
       if (s.placed_log.agents > 0 && s.rollouts > 0) {
         ++d.placed_scenarios;

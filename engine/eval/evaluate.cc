@@ -161,7 +161,8 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     const bool sdc_controlled = options.sdc == SdcRule::log && s.sdc_track_index >= 0;
     const ObjectState* sdc_now = sdc_controlled ? &s.tracks[s.sdc_track_index].states[now] : nullptr;
     const Vec2 centre = sdc_now ? Vec2{sdc_now->x, sdc_now->y} : scenario_focus(s);
-    if (full) out.placed_log = log_placed_agents(s, map.road_edges, centre, options.session.roi_radius, !sdc_controlled);
+    if (full)
+      out.placed_log = log_placed_agents(s, map.road_edges, centre, options.session.roi_radius, !sdc_controlled);
     int driven = 0, filled = 0;
     double match_total = 0;
     for (int k = 0; k < options.rollouts; ++k) {

@@ -204,8 +204,8 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
                           fmt(per_rollout, 1), d.placed_log.agents, d.placed_within_30, d.placed_scenarios);
     absl::StrAppendFormat(&t, "  offroad vehicles at the first step: generated %s (%d of %d), log %s (%d of %d)\n",
                           fmt(offroad_share(d.placed_generated), 3), d.placed_generated.offroad_vehicles,
-                          d.placed_generated.vehicles, fmt(offroad_share(d.placed_log), 3), d.placed_log.offroad_vehicles,
-                          d.placed_log.vehicles);
+                          d.placed_generated.vehicles, fmt(offroad_share(d.placed_log), 3),
+                          d.placed_log.offroad_vehicles, d.placed_log.vehicles);
   }
   if (run.policy == EvalPolicy::model) {
     absl::StrAppendFormat(&t, "\n  sim-agent frames moved at constant velocity (not driven by the model): %s%%\n",

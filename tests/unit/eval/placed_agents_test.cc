@@ -12,7 +12,8 @@ namespace {
 Scenario road() {
   Scenario s;
   s.id = "road";
-  for (const auto& points : {std::vector<MapPoint>{{-100, -5, 0}, {100, -5, 0}}, std::vector<MapPoint>{{100, 5, 0}, {-100, 5, 0}}}) {
+  for (const auto& points :
+       {std::vector<MapPoint>{{-100, -5, 0}, {100, -5, 0}}, std::vector<MapPoint>{{100, 5, 0}, {-100, 5, 0}}}) {
     MapFeature edge;
     edge.kind = MapFeatureKind::road_edge;
     edge.points = points;
