@@ -119,6 +119,9 @@ absl::StatusOr<Scenario> rollout_to_scenario(const Scenario& source, const std::
       // The current frame is the log's: an agent the model created there appears from the next frame on.
       if (j > 0) t.states[now + j] = object_state(s, z);
     }
+    // An agent created at the current step and gone by the next (retired, or out of the region) has no frame to
+    // show: a track valid nowhere would only confuse readers (WOMD tracks have a valid state).
+    if (std::none_of(t.states.begin(), t.states.end(), [](const ObjectState& o) { return o.valid; })) continue;
     out.tracks.push_back(std::move(t));
   }
 

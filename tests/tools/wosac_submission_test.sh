@@ -66,7 +66,7 @@ for r in sub.scenario_rollouts:
 # Scored from the files alone: the same numbers as eval gave directly.
 def metrics(path):
     r = json.load(open(path))
-    drop = {"policy", "mode", "seed", "model", "model_coverage", "model_driven_share"}
+    drop = {"policy", "mode", "seed", "model", "model_coverage", "model_driven_share", "sampling"}
     def clean(x):
         if isinstance(x, dict):
             return {k: clean(v) for k, v in x.items() if k not in drop}

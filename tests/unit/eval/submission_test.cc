@@ -3,6 +3,7 @@
 // WOMD scenario (rollout_to_scenario) keeps the log up to its current frame.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -297,6 +298,39 @@ TEST(RolloutExport, KeepsTheLogUpToTheCurrentFrame) {
   std::vector<StepResult> late(steps->begin() + 1, steps->end());
   EXPECT_FALSE(rollout_to_scenario(*s, late).ok());
   EXPECT_FALSE(rollout_to_scenario(*s, {}).ok());
+}
+
+TEST(RolloutExport, AgentGoneAfterTheCurrentStepGetsNoTrack) {
+  const auto s = load("/womd/tfrecord/motion_data_one_scenario.tfrecord");
+  auto model = Model::create(init_weights(*model_config_by_name("small"), 5));
+  ASSERT_TRUE(model.ok());
+  MapCache maps(*model);
+  auto map = maps.get(*s);
+  ASSERT_TRUE(map.ok());
+  SessionOptions o;
+  o.mode = SessionMode::densify;
+  o.densify_target = 60;
+  o.seed = 3;
+  auto steps = run_model_rollout(*model, s, *map, o, SdcRule::model, 2);
+  ASSERT_TRUE(steps.ok()) << steps.status();
+  // A generated agent (an id the log does not use) that retires right after the current step: its only state is
+  // at the current frame, which is the log's, so it has nothing to show.
+  std::set<int64_t> log_ids;
+  for (const Track& t : s->tracks) log_ids.insert(t.id);
+  int64_t gone = -1;
+  for (const AgentView& a : steps->front().agents)
+    if (!log_ids.count(a.id)) gone = a.id;
+  ASSERT_GE(gone, 0) << "densify created no agent at the current step";
+  for (size_t k = 1; k < steps->size(); ++k)
+    std::erase_if((*steps)[k].agents, [&](const AgentView& a) { return a.id == gone; });
+  auto out = rollout_to_scenario(*s, *steps);
+  ASSERT_TRUE(out.ok()) << out.status();
+  for (size_t i = 0; i < out->tracks.size(); ++i) {
+    const Track& t = out->tracks[i];
+    EXPECT_NE(t.id, gone);
+    if (i >= s->tracks.size())  // generated (a log track keeps its frames, valid or not)
+      EXPECT_TRUE(std::any_of(t.states.begin(), t.states.end(), [](const ObjectState& x) { return x.valid; })) << t.id;
+  }
 }
 
 }  // namespace

@@ -20,6 +20,7 @@ Rollout roll(const std::string& config) {
   o.mode = SessionMode::full;
   o.seed = 3;
   o.max_agents = 24;
+  o.temperature = 1.0;  // random weights: unsharpened sampling makes agents (SOA, TYPE rows) in these steps
   auto s = Session::create(r.w.model, r.w.scenario, r.w.map, o, &r.probe);
   EXPECT_TRUE(s.ok()) << s.status();
   for (int step = 3; step < 9; ++step) EXPECT_TRUE((*s)->step({testing::sdc_control(r.w, step)}).ok());
