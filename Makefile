@@ -62,12 +62,16 @@ soak: build
 # The default model (models/default.safetensors), reproduced from scratch: 300 SUMO scenarios, then the trainer on
 # the real train split plus them (hours on 2 cores; stop it any time and run it again: it resumes from its
 # checkpoint). The run lives outside the repository. TRAIN_FROM_COMMITTED=1 starts from the committed checkpoint
-# (models/train-checkpoint.pt) instead, to continue the run the committed model came from. The committed run used
-# these flags from step 788 on; its first 788 steps ran under longer schedules (see models/MODEL_CARD.md).
+# (models/train-checkpoint.pt) instead, to continue the run the committed model came from: raise TRAIN_STEPS past the
+# checkpoint's step (e.g. TRAIN_STEPS=4000 TRAIN_AGENTS=64, the run in progress at the end of 2026-11-24). The
+# committed run used these flags with 1,550 steps from step 788 to 1,550, then 2,500 (a warm restart); its first 788
+# steps ran under longer schedules (models/MODEL_CARD.md). From scratch, 2,500 steps make a close model.
 WOMD       ?= ../shared/data/womd
 TRAIN_DIR  ?= $(HOME)/.cache/scenestreamer/train-default
+TRAIN_STEPS  ?= 2500
+TRAIN_AGENTS ?= 32
 TRAIN_FLAGS = --config small --data $(WOMD)/json/train --synthetic $(TRAIN_DIR)/sumo,data --val $(WOMD)/json/val \
-  --real-fraction 0.7 --steps 1550 --stage1-steps 900 --batch 4 --lr 5e-4 --warmup 150 --max-agents 32 \
+  --real-fraction 0.7 --steps $(TRAIN_STEPS) --stage1-steps 900 --batch 4 --lr 5e-4 --warmup 150 --max-agents $(TRAIN_AGENTS) \
   --max-map-segments 1500 --threads 1 --val-every 200 --val-scenarios 16 --checkpoint-every 50 \
   --eval-every 500 --eval-tool $(BUILD)/tools/scenestreamer --eval-scenarios 8
 
