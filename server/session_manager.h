@@ -76,8 +76,10 @@ class SessionManager {
   SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics);
   ~SessionManager();
 
-  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_deadline_ms, const std::string& proposed_id, Clock::time_point deadline,
-                                  std::string* id);
+  // A new session; its id in `id`, and its scenario's map features in `map` when given (CreateSession's include_map).
+  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_deadline_ms,
+                                  const std::string& proposed_id, Clock::time_point deadline, std::string* id,
+                                  std::vector<MapFeature>* map = nullptr);
   // One call's ticks. In a multi-client session the caller waits for the other controllers (or the tick deadline).
   absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::vector<ControlInput>& controls,
                                              int num_ticks, Clock::time_point deadline);

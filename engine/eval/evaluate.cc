@@ -8,6 +8,7 @@
 #include "engine/eval/baselines.h"
 #include "engine/eval/model_rollout.h"
 #include "engine/eval/scene_features.h"
+#include "engine/eval/submission.h"
 
 namespace ss {
 namespace {
@@ -55,6 +56,7 @@ const char* eval_policy_name(EvalPolicy p) {
     case EvalPolicy::model: return "model";
     case EvalPolicy::constant_velocity: return "constant velocity";
     case EvalPolicy::log_replay: return "log replay";
+    case EvalPolicy::submission: return "submission";
   }
   return "?";
 }
@@ -80,7 +82,9 @@ uint64_t rollout_seed(uint64_t base, const std::string& scenario_id, int rollout
 }
 
 absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scenario> scenario, const EvalOptions& options,
-                                                     std::shared_ptr<const Model> model, MapCache* maps) {
+                                                     std::shared_ptr<const Model> model, MapCache* maps,
+                                                     const std::vector<JointScene>* submitted,
+                                                     std::vector<JointScene>* scenes) {
   const Scenario& s = *scenario;
   const int now = s.current_time_index;
   if (options.rollouts < 1) return absl::InvalidArgumentError("rollouts must be at least 1");
@@ -114,11 +118,22 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
 
   std::vector<JointScene> rollouts;
   std::vector<SceneFeatures> sims;
-  if (options.policy != EvalPolicy::model) {
+  if (options.policy == EvalPolicy::submission) {
+    if (!submitted || submitted->empty())
+      return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, ": the submission policy needs rollouts"));
+    for (const JointScene& scene : *submitted) {
+      if (scene.objects.size() != tracks.size() || scene.num_frames() != s.num_frames())
+        return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, ": a submitted rollout does not hold its ",
+                                                       tracks.size(), " sim agents over ", s.num_frames(), " frames"));
+      sims.push_back(scene_features(scene, evaluated, map, now, &log, evaluated));
+    }
+    rollouts = *submitted;
+  } else if (options.policy != EvalPolicy::model) {
     // Deterministic policies: one rollout, repeated so the estimators see the same sample size as the model's.
     JointScene scene = options.policy == EvalPolicy::constant_velocity ? constant_velocity_scene(s, tracks)
                                                                        : log_replay_scene(s, tracks);
     if (options.sdc == SdcRule::log && sdc_k >= 0) scene.objects[sdc_k] = log.objects[sdc_k];  // as an RL ego
+    if (options.submission_precision) round_to_submission(scene, now);
     const SceneFeatures f = scene_features(scene, evaluated, map, now, &log, evaluated);
     rollouts.assign(options.rollouts, scene);
     sims.assign(options.rollouts, f);
@@ -140,6 +155,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
       auto steps = run_model_rollout(model, scenario, *context, o, options.sdc);
       if (!steps.ok()) return steps.status();
       RolloutScene r = rollout_scene(s, tracks, *steps, full);
+      if (options.submission_precision) round_to_submission(r.scene, now);
       driven += r.driven_frames, filled += r.filled_frames;
       out.to_match += r.to_match, out.matched += r.matched;
       match_total += r.match_distance * r.matched;
@@ -175,6 +191,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
   }
   out.motion_all = motion_metrics(log, rollouts, all, now);
   out.motion_predict = motion_metrics(log, rollouts, predict, now);
+  if (scenes) *scenes = std::move(rollouts);
   return out;
 }
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import unittest
 
 import grpc
 
@@ -122,3 +123,15 @@ def ego_pose(tick):
             return pb.ControlledPose(agent_id=a.id, x=s.x + 0.5 * s.vx, y=s.y + 0.5 * s.vy, heading=s.heading,
                                      speed=speed)
     return None
+
+
+class ServerTestCase(unittest.TestCase):
+    """Tests that share one server process, started once for the class (self.server)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.server = Server().start()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.server.stop()
