@@ -10,7 +10,7 @@ FUZZ_LONG_SECONDS ?= 600
 CMAKE_OPTIONS = -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
 SERVE_DATA ?= $(firstword $(wildcard data/*.tfrecord* data/*.json) ../shared/data/womd/tfrecord)
 
-.PHONY: all deps build test unit-test fuzz-build fuzz serve clean train-default image image-test soak
+.PHONY: all deps build test unit-test determinism fuzz-build fuzz serve clean train-default image image-test soak
 
 all: build
 
@@ -30,6 +30,11 @@ unit-test: build
 
 test: unit-test fuzz-build
 	ctest --test-dir $(FUZZ_BUILD) --output-on-failure
+
+# The RNG and the rollout-comparing session tests again in a Debug build (tests/determinism/debug_build.sh): a cold
+# -O0 build of the engine takes longer than the rest of `make test`, so it has a target of its own.
+determinism: build
+	ctest --test-dir $(BUILD) -C determinism -R '^determinism\.' --output-on-failure
 
 fuzz:
 	$(MAKE) fuzz-build FUZZ_SECONDS=$(FUZZ_LONG_SECONDS)

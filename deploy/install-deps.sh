@@ -15,7 +15,7 @@ BUILD="
   build-essential cmake ninja-build pkg-config
   protobuf-compiler libprotobuf-dev
   libgrpc++-dev libgrpc-dev protobuf-compiler-grpc
-  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev
+  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 "
 ALL="$BUILD

@@ -1,13 +1,16 @@
 #include "engine/scenestreamer.h"
 
 #include <map>
+#include <mutex>
 
 #include "absl/strings/str_cat.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
 #include "engine/scenario/womd_proto.h"
+#include "engine/sim/events.h"
 #include "engine/sim/map_cache.h"
+#include "engine/sim/session.h"
 
 namespace ss {
 
@@ -19,6 +22,9 @@ class Engine {
   bool random_weights = false;
   std::vector<EngineScenario> listing;
   std::map<std::string, std::shared_ptr<const Scenario>> scenarios;
+  // The event maps of bundled scenarios, built at their first session and shared by all of them.
+  std::mutex event_maps_mu;
+  std::map<const Scenario*, std::shared_ptr<const EventMap>> event_maps;
 };
 
 namespace {
@@ -54,6 +60,20 @@ absl::StatusOr<std::shared_ptr<const Scenario>> resolve(Engine& e, const Session
   if (!s.ok()) return absl::InvalidArgumentError(s.status().message());
   if (auto st = check_limits(e, *s, "womd_bytes"); !st.ok()) return st;
   return std::make_shared<const Scenario>(std::move(*s));
+}
+
+bool bundled(const Engine& e, const Scenario& s) {
+  auto it = e.scenarios.find(s.id);
+  return it != e.scenarios.end() && it->second.get() == &s;
+}
+
+// The map a session's events are measured on: a bundled scenario's is shared, a client-sent one's is its own.
+std::shared_ptr<const EventMap> event_map_for(Engine& e, const Scenario& s) {
+  if (!bundled(e, s)) return std::make_shared<const EventMap>(event_map_from_scenario(s));
+  std::lock_guard<std::mutex> l(e.event_maps_mu);
+  auto& m = e.event_maps[&s];
+  if (!m) m = std::make_shared<const EventMap>(event_map_from_scenario(s));
+  return m;
 }
 
 }  // namespace
@@ -93,30 +113,60 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
 }
 
 const std::vector<EngineScenario>& engine_scenarios(const Engine& engine) { return engine.listing; }
-const ModelConfig& engine_model_config(const Engine& engine) { return engine.model->config(); }
+const std::string& engine_model_name(const Engine& engine) { return engine.model->config().name; }
 bool engine_random_weights(const Engine& engine) { return engine.random_weights; }
 int engine_map_encodes(const Engine& engine) { return engine.maps->encodes(); }
 
-absl::StatusOr<std::shared_ptr<const Scenario>> engine_scenario(Engine& engine, const SessionSource& source) {
-  return resolve(engine, source);
-}
+void SessionDeleter::operator()(Session* s) const { delete s; }
 
-absl::StatusOr<std::unique_ptr<Session>> session_create(Engine& engine, const SessionSource& source,
-                                                        const SessionOptions& options) {
+absl::StatusOr<SessionPtr> session_create(Engine& engine, const SessionSource& source, const SessionOptions& options) {
   auto scenario = resolve(engine, source);
   if (!scenario.ok()) return scenario.status();
   auto map = engine.maps->get(**scenario);
   if (!map.ok()) return map.status();
-  return Session::create(engine.model, *scenario, *map, options);
+  auto s = Session::create(engine.model, *scenario, *map, options);
+  if (!s.ok()) return s.status();
+  (*s)->set_event_map(event_map_for(engine, **scenario));
+  return SessionPtr(s->release());
 }
 
-absl::StatusOr<std::unique_ptr<Session>> session_restore(Engine& engine, const SessionSource& source,
-                                                         const std::string& saved) {
+absl::StatusOr<SessionPtr> session_restore(Engine& engine, const SessionSource& source, const std::string& state) {
   auto scenario = resolve(engine, source);
   if (!scenario.ok()) return scenario.status();
   auto map = engine.maps->get(**scenario);
   if (!map.ok()) return map.status();
-  return Session::restore(engine.model, *scenario, *map, saved);
+  auto s = Session::restore(engine.model, *scenario, *map, state);
+  if (!s.ok()) return s.status();
+  (*s)->set_event_map(event_map_for(engine, **scenario));
+  return SessionPtr(s->release());
+}
+
+SessionPtr session_fork(const Session& session) { return SessionPtr(session.fork().release()); }
+absl::StatusOr<StepResult> session_tick(Session& session, const std::vector<ControlInput>& controls) {
+  return session.tick(controls);
+}
+StepResult session_view(const Session& session) { return session.tick_view(); }
+int64_t session_tick_index(const Session& session) { return session.tick_index(); }
+absl::StatusOr<std::vector<int64_t>> session_inject(Session& session, const InjectRequest& request) {
+  return session.inject(request);
+}
+absl::Status session_force(Session& session, const StateForceRequest& request) { return session.state_force(request); }
+const SessionOptions& session_options(const Session& session) { return session.options(); }
+const std::vector<MapFeature>& session_map_features(const Session& session) {
+  return session.scenario().map_features;
+}
+std::string session_save(const Session& session) { return session.save(); }
+
+uint64_t session_memory_bytes(const Engine& engine, const Session& session) {
+  uint64_t b = session.memory_bytes();
+  const Scenario& s = session.scenario();
+  if (bundled(engine, s)) return b;
+  // A client-sent scenario: its parsed form, its map encoding and its event map are this session's alone.
+  if (session.event_map()) b += session.event_map()->bytes();
+  b += sizeof(Scenario) + s.timestamps.capacity() * sizeof(double) + s.signals.capacity() * 64;
+  for (const Track& t : s.tracks) b += sizeof(Track) + t.states.capacity() * sizeof(ObjectState);
+  for (const MapFeature& m : s.map_features) b += sizeof(MapFeature) + m.points.capacity() * sizeof(MapPoint);
+  return b + session.map().bytes();
 }
 
 void engine_thread_init() { enable_flush_to_zero(); }

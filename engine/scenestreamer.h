@@ -1,9 +1,8 @@
-// The engine's small public surface for programs that host it (the gRPC server): one Engine holding the model, the
-// shared map encodings and the named scenarios, and functions with shared prefixes (engine_*, session_*) to start
-// sessions from a bundled scenario or from WOMD Scenario bytes a client sent. It re-exports the Session types, the
-// per-tick events (engine/sim/events.h) and the whole-file reader and atomic writer (for a host's own files, e.g.
-// snapshots), so a host includes only this header from the engine (the llama.cpp pattern: a C-like facade over the
-// internals).
+// The engine's public door for programs that host it (the gRPC server): one Engine holding the model, the shared map
+// encodings and the named scenarios, and sessions behind an opaque handle, driven by functions with shared prefixes
+// (engine_*, session_*) over plain value types (engine/sim/session_types.h: no Eigen, no engine internals). A host
+// includes only this header from the engine (the llama.cpp pattern: opaque handles, plain structs, noun_verb names,
+// and the state functions with their versioned format).
 #pragma once
 
 #include <cstdint>
@@ -13,10 +12,9 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "engine/base/rng.h"
 #include "engine/io/file_io.h"
-#include "engine/sim/events.h"
-#include "engine/sim/session.h"
-#include "engine/sim/tick.h"
+#include "engine/sim/session_types.h"
 
 namespace ss {
 
@@ -46,33 +44,54 @@ struct SessionSource {
 };
 
 class Engine;
-// Frees an Engine (it is opaque to hosts).
+class Session;
+// Free an Engine or a Session (both are opaque to hosts). Closing a session is dropping its handle.
 struct EngineDeleter {
   void operator()(Engine* e) const;
 };
+struct SessionDeleter {
+  void operator()(Session* s) const;
+};
 using EnginePtr = std::unique_ptr<Engine, EngineDeleter>;
+using SessionPtr = std::unique_ptr<Session, SessionDeleter>;
 
 // Loads the model (or makes random weights when no path is given) and reads every scenario. engine_random_weights()
 // says which happened so the host can warn loudly.
 absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options);
 const std::vector<EngineScenario>& engine_scenarios(const Engine& engine);
-const ModelConfig& engine_model_config(const Engine& engine);
+const std::string& engine_model_name(const Engine& engine);  // the model config's name
 bool engine_random_weights(const Engine& engine);
 // Number of map encodings computed so far (the rest were shared between sessions).
 int engine_map_encodes(const Engine& engine);
-
-// A new session on `source`: NOT_FOUND for an unknown scenario name, INVALID_ARGUMENT for bytes that are not a valid
-// WOMD Scenario, RESOURCE_EXHAUSTED for a scenario above the limits, and Session::create's own errors.
-absl::StatusOr<std::unique_ptr<Session>> session_create(Engine& engine, const SessionSource& source,
-                                                        const SessionOptions& options);
-// The scenario a session on `source` runs (bundled scenarios are shared; client bytes are parsed and checked against
-// the limits, with session_create's errors): for hosts that send its map to clients or measure events on it.
-absl::StatusOr<std::shared_ptr<const Scenario>> engine_scenario(Engine& engine, const SessionSource& source);
-// A session from Session::save() bytes, on the same source it was created on.
-absl::StatusOr<std::unique_ptr<Session>> session_restore(Engine& engine, const SessionSource& source,
-                                                         const std::string& saved);
-
 // Sets flush-to-zero for the calling compute thread (denormals slow the math 2-7x).
 void engine_thread_init();
+
+// A new session on `source`: NOT_FOUND for an unknown scenario name, INVALID_ARGUMENT for bytes that are not a valid
+// WOMD Scenario or for bad options, RESOURCE_EXHAUSTED for a scenario above the limits.
+absl::StatusOr<SessionPtr> session_create(Engine& engine, const SessionSource& source, const SessionOptions& options);
+// A full copy (cache, RNG, tick clock and pushed poses included): both continue identically with the same inputs.
+SessionPtr session_fork(const Session& session);
+// One tick of the session's clock (options.tick_hz): `controls` are the controlled agents' poses at the new tick,
+// checked when they arrive (INVALID_ARGUMENT naming the agent). On error the session is unchanged. The result's
+// `events` are each controlled agent's events since the previous tick (overlaps, off road, red light, lane).
+absl::StatusOr<StepResult> session_tick(Session& session, const std::vector<ControlInput>& controls);
+// What the current tick shows, and its index (ticks since the session started).
+StepResult session_view(const Session& session);
+int64_t session_tick_index(const Session& session);
+absl::StatusOr<std::vector<int64_t>> session_inject(Session& session, const InjectRequest& request);
+absl::Status session_force(Session& session, const StateForceRequest& request);
+const SessionOptions& session_options(const Session& session);
+// The session's map as its scenario gives it (ids, kinds, polylines, lane links), for hosts that send it to clients.
+const std::vector<MapFeature>& session_map_features(const Session& session);
+// Bytes the session holds: its state and cache, plus a client-sent scenario's parsed form and map encoding, which
+// no other session shares.
+uint64_t session_memory_bytes(const Engine& engine, const Session& session);
+
+// The session's state: everything needed to continue it (options, tick position, pushed poses, RNG, agents, the
+// token batches that rebuild its cache), starting with kSessionStateMagic (session_types.h), whose last character
+// is the format version; a state of another version is refused naming both (FAILED_PRECONDITION).
+std::string session_save(const Session& session);
+// A session from session_save() bytes, on the same source it was created on.
+absl::StatusOr<SessionPtr> session_restore(Engine& engine, const SessionSource& source, const std::string& state);
 
 }  // namespace ss

@@ -74,6 +74,7 @@ absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest
   if (r.max_agents() > 0) o.max_agents = r.max_agents();
   if (r.densify_target() < 0) return absl::InvalidArgumentError("densify_target must not be negative");
   o.densify_target = r.densify_target();
+  o.tick_hz = r.tick_hz() == 0 ? 2 : r.tick_hz();  // the engine checks the value
   return o;
 }
 
@@ -159,10 +160,7 @@ void tick_to_proto(const StepResult& s, int64_t tick, pb::Tick* out) {
     o->set_entered(a.entered);
   }
   for (int64_t id : s.left) out->add_left(id);
-}
-
-void events_to_proto(const std::vector<AgentEvents>& events, pb::Tick* out) {
-  for (const AgentEvents& e : events) {
+  for (const AgentEvents& e : s.events) {
     pb::AgentEvents* o = out->add_events();
     o->set_agent_id(e.agent_id);
     for (int64_t id : e.overlapping) o->add_overlapping(id);
@@ -178,8 +176,13 @@ void events_to_proto(const std::vector<AgentEvents>& events, pb::Tick* out) {
   }
 }
 
-void map_to_proto(const Scenario& s, pb::CreateSessionResponse* out) {
-  for (const MapFeature& f : s.map_features) {
+::grpc::Status to_grpc(const absl::Status& st) {
+  if (st.ok()) return ::grpc::Status::OK;
+  return ::grpc::Status(static_cast<::grpc::StatusCode>(static_cast<int>(st.code())), std::string(st.message()));
+}
+
+void map_to_proto(const std::vector<MapFeature>& map, pb::CreateSessionResponse* out) {
+  for (const MapFeature& f : map) {
     pb::MapFeature* o = out->add_map();
     o->set_id(f.id);
     // MapFeatureType lists the kinds in MapFeatureKind's order.

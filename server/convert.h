@@ -6,6 +6,7 @@
 
 #include "absl/status/statusor.h"
 #include "engine/scenestreamer.h"
+#include "grpcpp/support/status.h"
 #include "scenestreamer/v1/simulator.pb.h"
 
 namespace ss::server {
@@ -17,9 +18,12 @@ absl::StatusOr<std::vector<ControlInput>> controls_from_proto(const pb::StepScen
 absl::StatusOr<InjectRequest> inject_from_proto(const pb::InjectAgentRequest& r);
 absl::StatusOr<StateForceRequest> force_from_proto(const pb::StateForceRequest& r);
 
+// A tick's agents, lights and (for a tick a call made) its controlled agents' events.
 void tick_to_proto(const StepResult& s, int64_t tick, pb::Tick* out);
-void events_to_proto(const std::vector<AgentEvents>& events, pb::Tick* out);
-void map_to_proto(const Scenario& s, pb::CreateSessionResponse* out);
+void map_to_proto(const std::vector<MapFeature>& map, pb::CreateSessionResponse* out);
+// The one conversion of an engine or manager status to the gRPC status a handler returns (the codes are the same
+// numbers; the message is kept).
+::grpc::Status to_grpc(const absl::Status& st);
 pb::Mode mode_to_proto(SessionMode m);
 
 }  // namespace ss::server

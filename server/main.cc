@@ -25,11 +25,15 @@ ABSL_FLAG(std::string, scenario_dir, "",
           "Directory of WOMD TFRecord / GPUDrive JSON scenarios; empty: data/ if it holds any, else "
           "../shared/data/womd/tfrecord");
 ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction and SIGTERM, and restored from on start");
+ABSL_FLAG(double, snapshot_interval_s, 30,
+          "With --snapshot_dir: sessions that changed are saved this often, so a crash loses at most this much "
+          "(0: saved only on eviction and SIGTERM)");
 ABSL_FLAG(int, max_sessions, 256, "Cap on sessions in memory");
 ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state), MiB");
 ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
 ABSL_FLAG(double, evict_idle_s, 30, "A session unused this long may be evicted (least recently used first) for room");
 ABSL_FLAG(int, threads, 0, "Engine calls running at once; 0: the number of cores");
+ABSL_FLAG(int, max_watchers, 1024, "Cap on WatchSession streams open at once (they cost no thread each)");
 ABSL_FLAG(int, tick_deadline_ms, 2000, "Default wait of a multi-client tick for its late controllers");
 ABSL_FLAG(double, call_deadline_s, 120, "Deadline of a call whose client set none");
 ABSL_FLAG(int, max_message_mb, 64, "Largest request or response, MiB (also the largest client-sent scenario)");
@@ -96,12 +100,13 @@ int main(int argc, char** argv) {
     spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise). Pass --model FILE or "
                  "put a .safetensors file in models/ !!!", eo.random_config);
   else
-    spdlog::info("model {} (config {})", eo.model_path, ss::engine_model_config(**engine).name);
+    spdlog::info("model {} (config {})", eo.model_path, ss::engine_model_name(**engine));
   spdlog::info("{} scenarios from {}", ss::engine_scenarios(**engine).size(), scenario_dir);
 
   ss::server::Metrics metrics;
   ss::server::ManagerOptions mo;
   mo.snapshot_dir = absl::GetFlag(FLAGS_snapshot_dir);
+  mo.snapshot_interval_s = absl::GetFlag(FLAGS_snapshot_interval_s);
   mo.max_sessions = absl::GetFlag(FLAGS_max_sessions);
   mo.max_cache_bytes = static_cast<uint64_t>(absl::GetFlag(FLAGS_max_cache_mb)) << 20;
   mo.idle_timeout_s = absl::GetFlag(FLAGS_idle_timeout_s);
@@ -109,20 +114,23 @@ int main(int argc, char** argv) {
   mo.compute_threads = absl::GetFlag(FLAGS_threads) > 0 ? absl::GetFlag(FLAGS_threads)
                                                          : static_cast<int>(std::thread::hardware_concurrency());
   mo.default_tick_deadline_ms = absl::GetFlag(FLAGS_tick_deadline_ms);
+  mo.max_watchers = absl::GetFlag(FLAGS_max_watchers);
   ss::server::SessionManager sessions(**engine, mo, metrics);
   metrics.sessions = [&] { return sessions.count(); };
   metrics.cache_bytes = [&] { return sessions.total_bytes(); };
+  metrics.watchers = [&] { return sessions.watchers(); };
   if (!mo.snapshot_dir.empty()) {
     const int n = sessions.restore_all();
     spdlog::info("restored {} sessions from {}", n, mo.snapshot_dir);
   }
 
-  ss::server::MetricsHttp metrics_http(metrics);
   if (absl::GetFlag(FLAGS_metrics_port) >= 0) {
-    if (metrics_http.start(absl::GetFlag(FLAGS_metrics_host), absl::GetFlag(FLAGS_metrics_port)))
-      spdlog::info("metrics on http://{}:{}/metrics", absl::GetFlag(FLAGS_metrics_host), metrics_http.port());
+    const std::string host = absl::GetFlag(FLAGS_metrics_host);
+    auto metrics_port = metrics.serve(host, absl::GetFlag(FLAGS_metrics_port));
+    if (metrics_port.ok())
+      spdlog::info("metrics on http://{}:{}/metrics", host, *metrics_port);
     else
-      spdlog::warn("metrics port {} unavailable; metrics off", absl::GetFlag(FLAGS_metrics_port));
+      spdlog::warn("metrics off: {}", std::string(metrics_port.status().message()));
   }
 
   ss::server::SimulatorService service(**engine, sessions, metrics, absl::GetFlag(FLAGS_call_deadline_s));
@@ -161,7 +169,6 @@ int main(int argc, char** argv) {
   server->Wait();
   const int saved = sessions.save_all();
   if (!mo.snapshot_dir.empty()) spdlog::info("saved {} sessions to {}", saved, mo.snapshot_dir);
-  metrics_http.stop();
   spdlog::info("stopped");
   return 0;
 }

@@ -1,110 +1,97 @@
 #include "server/metrics.h"
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
+#include <exception>
 
-#include <cstdio>
+#include "absl/strings/str_cat.h"
+#include "prometheus/collectable.h"
+#include "prometheus/gauge.h"
+#include "prometheus/metric_family.h"
+#include "prometheus/text_serializer.h"
 
 namespace ss::server {
+namespace {
 
-void Metrics::count_step(double seconds) {
-  std::lock_guard<std::mutex> l(mu_);
-  steps_++;
-  step_seconds_sum_ += seconds;
-  for (size_t i = 0; i < kBuckets.size(); ++i)
-    if (seconds <= kBuckets[i]) bucket_counts_[i]++;
+// Seconds per tick: from a small model's sub-tick (1 ms) to a large one's step under load.
+const prometheus::Histogram::BucketBoundaries kStepBuckets = {0.001, 0.0025, 0.005, 0.01, 0.025, 0.05,
+                                                              0.1,   0.25,   0.5,   1,    2.5,   10};
+
+prometheus::Family<prometheus::Counter>& counter(prometheus::Registry& r, const char* name, const char* help) {
+  return prometheus::BuildCounter().Name(name).Help(help).Register(r);
 }
 
-void Metrics::count_rejected(const std::string& code) {
-  std::lock_guard<std::mutex> l(mu_);
-  rejected_[code]++;
+}  // namespace
+
+// The gauges whose values live elsewhere (the session manager), read when a scrape asks.
+class Metrics::Gauges : public prometheus::Collectable {
+ public:
+  explicit Gauges(const Metrics& m) : m_(m) {}
+  std::vector<prometheus::MetricFamily> Collect() const override {
+    auto family = [](const char* name, const char* help, double v) {
+      prometheus::MetricFamily f;
+      f.name = name;
+      f.help = help;
+      f.type = prometheus::MetricType::Gauge;
+      f.metric.emplace_back().gauge.value = v;
+      return f;
+    };
+    return {family("scenestreamer_sessions", "Sessions held in memory.", m_.sessions ? m_.sessions() : 0),
+            family("scenestreamer_cache_bytes", "Bytes held by sessions (KV caches and state).",
+                   m_.cache_bytes ? static_cast<double>(m_.cache_bytes()) : 0),
+            family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0)};
+  }
+
+ private:
+  const Metrics& m_;
+};
+
+Metrics::Metrics()
+    : registry_(std::make_shared<prometheus::Registry>()),
+      gauges_(std::make_shared<Gauges>(*this)),
+      steps_(counter(*registry_, "scenestreamer_steps_total", "Ticks computed.")),
+      step_seconds_(prometheus::BuildHistogram()
+                        .Name("scenestreamer_step_seconds")
+                        .Help("Time to compute one tick.")
+                        .Register(*registry_)),
+      rejected_(counter(*registry_, "scenestreamer_rejected_total", "Calls refused, by gRPC status code.")),
+      calls_(counter(*registry_, "scenestreamer_calls_total", "Calls received, by method.")),
+      evictions_(counter(*registry_, "scenestreamer_evictions_total", "Idle sessions evicted to make room.")) {
+  // Series without labels exist from the start, so a scrape shows them at zero.
+  steps_.Add({});
+  step_seconds_.Add({}, kStepBuckets);
+  evictions_.Add({});
+}
+
+Metrics::~Metrics() = default;
+
+void Metrics::count_step(double seconds) {
+  steps_.Add({}).Increment();
+  step_seconds_.Add({}, kStepBuckets).Observe(seconds);
+}
+
+void Metrics::count_rejected(const std::string& code) { rejected_.Add({{"code", code}}).Increment(); }
+void Metrics::count_eviction() { evictions_.Add({}).Increment(); }
+void Metrics::count_call(const std::string& method) { calls_.Add({{"method", method}}).Increment(); }
+
+absl::StatusOr<int> Metrics::serve(const std::string& host, int port) {
+  // Enough worker threads that idle connections do not hold up a scrape, and a short request timeout that frees
+  // the workers such connections take (civetweb serves one connection per worker).
+  try {
+    exposer_ = std::make_unique<prometheus::Exposer>(std::vector<std::string>{
+        "listening_ports", absl::StrCat(host, ":", port), "num_threads", "16", "request_timeout_ms", "2000"});
+  } catch (const std::exception& e) {
+    return absl::UnavailableError(absl::StrCat("metrics on ", host, ":", port, ": ", e.what()));
+  }
+  exposer_->RegisterCollectable(registry_);
+  exposer_->RegisterCollectable(gauges_);
+  const std::vector<int> ports = exposer_->GetListeningPorts();
+  if (ports.empty()) return absl::UnavailableError(absl::StrCat("metrics on ", host, ":", port, ": no port bound"));
+  return ports[0];
 }
 
 std::string Metrics::render() const {
-  std::string o;
-  char buf[256];
-  o += "# HELP scenestreamer_sessions Sessions held in memory.\n# TYPE scenestreamer_sessions gauge\n";
-  o += "scenestreamer_sessions " + std::to_string(sessions ? sessions() : 0) + "\n";
-  o += "# HELP scenestreamer_cache_bytes Bytes held by sessions (KV caches and state).\n"
-       "# TYPE scenestreamer_cache_bytes gauge\n";
-  o += "scenestreamer_cache_bytes " + std::to_string(cache_bytes ? cache_bytes() : 0) + "\n";
-  o += "# HELP scenestreamer_evictions_total Idle sessions evicted to make room.\n"
-       "# TYPE scenestreamer_evictions_total counter\n";
-  o += "scenestreamer_evictions_total " + std::to_string(evictions_.load()) + "\n";
-  std::lock_guard<std::mutex> l(mu_);
-  o += "# HELP scenestreamer_steps_total Ticks computed.\n# TYPE scenestreamer_steps_total counter\n";
-  o += "scenestreamer_steps_total " + std::to_string(steps_) + "\n";
-  o += "# HELP scenestreamer_step_seconds Time to compute one tick.\n# TYPE scenestreamer_step_seconds histogram\n";
-  for (size_t i = 0; i < kBuckets.size(); ++i) {
-    std::snprintf(buf, sizeof buf, "scenestreamer_step_seconds_bucket{le=\"%g\"} %llu\n", kBuckets[i],
-                  static_cast<unsigned long long>(bucket_counts_[i]));
-    o += buf;
-  }
-  o += "scenestreamer_step_seconds_bucket{le=\"+Inf\"} " + std::to_string(steps_) + "\n";
-  std::snprintf(buf, sizeof buf, "scenestreamer_step_seconds_sum %.6f\n", step_seconds_sum_);
-  o += buf;
-  o += "scenestreamer_step_seconds_count " + std::to_string(steps_) + "\n";
-  o += "# HELP scenestreamer_rejected_total Calls refused, by gRPC status code.\n"
-       "# TYPE scenestreamer_rejected_total counter\n";
-  for (const auto& [code, n] : rejected_)
-    o += "scenestreamer_rejected_total{code=\"" + code + "\"} " + std::to_string(n) + "\n";
-  o += "# HELP scenestreamer_calls_total Calls received, by method.\n# TYPE scenestreamer_calls_total counter\n";
-  for (const auto& [m, n] : calls_) o += "scenestreamer_calls_total{method=\"" + m + "\"} " + std::to_string(n) + "\n";
-  return o;
-}
-
-bool MetricsHttp::start(const std::string& host, int port) {
-  fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd_ < 0) return false;
-  int one = 1;
-  ::setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(static_cast<uint16_t>(port));
-  if (::inet_pton(AF_INET, host.c_str(), &a.sin_addr) != 1) return false;
-  if (::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(fd_, 16) != 0) {
-    ::close(fd_);
-    fd_ = -1;
-    return false;
-  }
-  socklen_t len = sizeof a;
-  ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len);
-  port_ = ntohs(a.sin_port);
-  thread_ = std::thread([this] { loop(); });
-  return true;
-}
-
-void MetricsHttp::stop() {
-  stop_ = true;
-  if (thread_.joinable()) thread_.join();
-  if (fd_ >= 0) ::close(fd_);
-  fd_ = -1;
-}
-
-void MetricsHttp::loop() {
-  while (!stop_) {
-    pollfd p{fd_, POLLIN, 0};
-    if (::poll(&p, 1, 200) <= 0) continue;
-    const int c = ::accept(fd_, nullptr, nullptr);
-    if (c < 0) continue;
-    // One short request per connection (HTTP/1.0): read what arrives within a moment, answer, close.
-    char req[2048];
-    pollfd q{c, POLLIN, 0};
-    if (::poll(&q, 1, 1000) > 0) (void)::recv(c, req, sizeof req, 0);
-    const std::string body = metrics_.render();
-    const std::string resp = "HTTP/1.0 200 OK\r\nContent-Type: text/plain; version=0.0.4\r\nContent-Length: " +
-                             std::to_string(body.size()) + "\r\n\r\n" + body;
-    size_t sent = 0;
-    while (sent < resp.size()) {
-      const ssize_t n = ::send(c, resp.data() + sent, resp.size() - sent, MSG_NOSIGNAL);
-      if (n <= 0) break;
-      sent += static_cast<size_t>(n);
-    }
-    ::close(c);
-  }
+  std::vector<prometheus::MetricFamily> all = registry_->Collect();
+  for (auto& f : gauges_->Collect()) all.push_back(std::move(f));
+  return prometheus::TextSerializer().Serialize(all);
 }
 
 }  // namespace ss::server

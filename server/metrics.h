@@ -1,60 +1,49 @@
-// Prometheus text-format metrics, served by a tiny HTTP/1.0 responder on its own (loopback) port: the server's
-// gRPC port stays gRPC-only.
+// The server's Prometheus metrics, kept in a prometheus-cpp registry and served by its pull exposer (civetweb, on its
+// own loopback port: the gRPC port stays gRPC-only).
 #pragma once
 
-#include <array>
-#include <atomic>
 #include <cstdint>
 #include <functional>
-#include <map>
-#include <mutex>
+#include <memory>
 #include <string>
-#include <thread>
+
+#include "absl/status/statusor.h"
+#include "prometheus/counter.h"
+#include "prometheus/exposer.h"
+#include "prometheus/family.h"
+#include "prometheus/histogram.h"
+#include "prometheus/registry.h"
 
 namespace ss::server {
 
 class Metrics {
  public:
+  Metrics();
+  ~Metrics();
   void count_step(double seconds);
   void count_rejected(const std::string& code);
-  void count_eviction() { evictions_++; }
-  void count_call(const std::string& method) {
-    std::lock_guard<std::mutex> l(mu_);
-    calls_[method]++;
-  }
+  void count_eviction();
+  void count_call(const std::string& method);
   // Gauges read at scrape time.
   std::function<int()> sessions;
   std::function<uint64_t()> cache_bytes;
+  std::function<int()> watchers;
 
+  // Serves GET /metrics on host:port (0: a free port) until the Metrics is destroyed; returns the port.
+  absl::StatusOr<int> serve(const std::string& host, int port);
+  // The text exposition format, as a scrape gets it.
   std::string render() const;
 
  private:
-  static constexpr std::array<double, 12> kBuckets = {0.001, 0.0025, 0.005, 0.01, 0.025, 0.05,
-                                                       0.1,   0.25,   0.5,   1,    2.5,   10};
-  mutable std::mutex mu_;
-  std::array<uint64_t, kBuckets.size()> bucket_counts_{};
-  uint64_t steps_ = 0;
-  double step_seconds_sum_ = 0;
-  std::map<std::string, uint64_t> rejected_, calls_;
-  std::atomic<uint64_t> evictions_{0};
-};
-
-// Serves GET /metrics (any path, in fact) on host:port until stop(). Port 0 picks a free one (port() tells).
-class MetricsHttp {
- public:
-  MetricsHttp(const Metrics& m) : metrics_(m) {}
-  ~MetricsHttp() { stop(); }
-  bool start(const std::string& host, int port);
-  int port() const { return port_; }
-  void stop();
-
- private:
-  void loop();
-  const Metrics& metrics_;
-  int fd_ = -1;
-  int port_ = 0;
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
+  class Gauges;
+  std::shared_ptr<prometheus::Registry> registry_;
+  std::shared_ptr<Gauges> gauges_;
+  prometheus::Family<prometheus::Counter>& steps_;
+  prometheus::Family<prometheus::Histogram>& step_seconds_;
+  prometheus::Family<prometheus::Counter>& rejected_;
+  prometheus::Family<prometheus::Counter>& calls_;
+  prometheus::Family<prometheus::Counter>& evictions_;
+  std::unique_ptr<prometheus::Exposer> exposer_;
 };
 
 }  // namespace ss::server

@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <random>
 
 #include "absl/strings/str_cat.h"
+#include "server/session_id.h"
 #include "server/snapshot.h"
 #include "spdlog/spdlog.h"
 
@@ -15,27 +15,28 @@ namespace ss::server {
 struct ManagedSession {
   std::string id;
   SessionSource source;
-  int tick_hz = 2;
   int tick_deadline_ms = 0;
 
   std::timed_mutex engine_mu;
-  std::unique_ptr<Session> session;
-  std::map<int64_t, ControlInput> latest_pose;   // 10 Hz: every controller's latest pose
-  std::map<int64_t, ControlInput> step_controls; // 10 Hz: poses since the last model step
+  SessionPtr session;
   std::atomic<uint64_t> bytes{0};
+  uint64_t max_tick_growth = 0;                  // the most one tick has added to `bytes` (under engine_mu)
+  std::atomic<uint64_t> changes{1};              // counts ticks, injections and forces (1: never saved)
+  uint64_t saved_changes = 0;                    // `changes` when the snapshot was last written (under engine_mu)
   std::atomic<int64_t> last_used{0};             // steady clock, nanoseconds
 
   std::mutex mu;
   std::condition_variable cv;
   int64_t tick = 0;
-  StepResult view;
+  StepResult view;                               // the current tick as GetSession shows it (no events)
   std::set<int64_t> controllers;                 // controlled agents alive: each may have its own client
   std::map<int64_t, ControlInput> pending;       // poses for tick + 1
   std::optional<Clock::time_point> pending_since;
   bool stepping = false;
   int64_t failed_tick = -1;
   absl::Status failed_status;
-  std::deque<TickView> recent;                   // the last ticks, for waiting controllers and watchers
+  std::deque<TickView> recent;                   // the last ticks, for waiting controllers
+  std::vector<std::shared_ptr<TickWatcher>> watchers;  // WatchSession streams
   bool closed = false;
 
   void touch() { last_used = Clock::now().time_since_epoch().count(); }
@@ -45,44 +46,16 @@ struct ManagedSession {
   // Holds mu.
   void publish(const StepResult& v) {
     view = v;
+    view.events.clear();  // events belong to the tick a call made (StepScene, watchers), not to the current view
     controllers.clear();
     for (const AgentView& a : v.agents)
       if (a.controlled) controllers.insert(a.id);
     recent.push_back({tick, v});
     while (recent.size() > 64) recent.pop_front();
+    std::erase_if(watchers, [](const auto& w) { return w->done(); });
+    for (const auto& w : watchers) w->on_tick(recent.back());
   }
 };
-
-namespace {
-
-constexpr int kTicksPerStep10Hz = 5;
-
-std::string random_id() {
-  std::random_device rd;  // the kernel's CSPRNG: ids are unguessable
-  static const char* hex = "0123456789abcdef";
-  std::string s;
-  for (int i = 0; i < 4; ++i) {
-    uint32_t v = rd();
-    for (int j = 0; j < 8; ++j) s += hex[(v >> (4 * j)) & 15];
-  }
-  return s;
-}
-
-absl::Status valid_proposed_id(const std::string& id) {
-  if (id.size() > 128) return absl::InvalidArgumentError("session_id: longer than 128 characters");
-  for (char c : id)
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
-      return absl::InvalidArgumentError(absl::StrCat("session_id '", id, "': only letters, digits, '-', '_', '.'"));
-  if (id[0] == '.') return absl::InvalidArgumentError(absl::StrCat("session_id '", id, "' must not start with '.'"));
-  return absl::OkStatus();
-}
-
-StepResult view_at(const Session& session, int tick_hz, int64_t tick) {
-  if (tick_hz != 10 || tick % kTicksPerStep10Hz == 0) return session.current();
-  return tick_between_steps(session, static_cast<int>(tick % kTicksPerStep10Hz), kTicksPerStep10Hz, {});
-}
-
-}  // namespace
 
 SessionManager::SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics)
     : engine_(engine), options_(std::move(options)), metrics_(metrics), slots_(std::max(1, options_.compute_threads)) {
@@ -120,10 +93,10 @@ uint64_t SessionManager::total_bytes() {
 }
 
 absl::StatusOr<std::string> SessionManager::new_id(const std::string& proposed) {
-  if (proposed.empty()) return random_id();
-  if (auto st = valid_proposed_id(proposed); !st.ok()) return st;
+  if (proposed.empty()) return random_session_id();
+  if (auto st = check_session_id(proposed); !st.ok()) return st;
   if (sessions_.count(proposed) || evicted_.count(proposed))
-    return absl::AlreadyExistsError(absl::StrCat("session_id '", proposed, "' is already in use"));
+    return absl::AlreadyExistsError(absl::StrCat("session_id ", echo_id(proposed), " is already in use"));
   return proposed;
 }
 
@@ -131,14 +104,12 @@ absl::Status SessionManager::save(ManagedSession& s) {
   Snapshot snap;
   snap.session_id = s.id;
   snap.source = s.source;
-  snap.tick_hz = s.tick_hz;
   snap.tick_deadline_ms = s.tick_deadline_ms;
-  {
-    std::lock_guard<std::mutex> l(s.mu);
-    snap.tick = s.tick;
-  }
-  snap.session_bytes = s.session->save();
-  return write_snapshot(options_.snapshot_dir, snap);
+  snap.session_bytes = session_save(*s.session);
+  const uint64_t changes = s.changes;
+  absl::Status st = write_snapshot(options_.snapshot_dir, snap);
+  if (st.ok()) s.saved_changes = changes;
+  return st;
 }
 
 absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>& s) {
@@ -152,6 +123,7 @@ absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>&
     std::lock_guard<std::mutex> l(s->mu);
     s->closed = true;
     s->cv.notify_all();
+    end_watchers_locked(*s);
   }
   sessions_.erase(s->id);
   metrics_.count_eviction();
@@ -160,17 +132,20 @@ absl::Status SessionManager::evict_locked(const std::shared_ptr<ManagedSession>&
   return absl::OkStatus();
 }
 
-absl::Status SessionManager::make_room_locked(uint64_t extra_bytes) {
-  auto over = [&] {
-    uint64_t b = extra_bytes;
+absl::Status SessionManager::make_room_locked(uint64_t extra_bytes, int extra_sessions, const ManagedSession* keep) {
+  auto held = [&] {
+    uint64_t b = 0;
     for (const auto& [id, s] : sessions_) b += s->bytes;
-    return static_cast<int>(sessions_.size()) + 1 > options_.max_sessions ||
-           b > options_.max_cache_bytes;
+    return b;
+  };
+  auto over = [&] {
+    return static_cast<int>(sessions_.size()) + extra_sessions > options_.max_sessions ||
+           held() + extra_bytes > options_.max_cache_bytes;
   };
   while (over()) {
     std::vector<std::shared_ptr<ManagedSession>> idle;
     for (const auto& [id, s] : sessions_)
-      if (s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
+      if (s.get() != keep && s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
     std::sort(idle.begin(), idle.end(), [](const auto& a, const auto& b) { return a->last_used < b->last_used; });
     bool evicted = false;
     for (const auto& s : idle)
@@ -178,26 +153,22 @@ absl::Status SessionManager::make_room_locked(uint64_t extra_bytes) {
         evicted = true;
         break;
       }
-    if (!evicted) {
-      uint64_t b = 0;
-      for (const auto& [id, s] : sessions_) b += s->bytes;
+    if (!evicted)
       return absl::ResourceExhaustedError(absl::StrCat(
-          std::to_string(sessions_.size()), " sessions holding ", std::to_string(b),
-          " bytes: the caps are --max_sessions=", std::to_string(options_.max_sessions), " and --max_cache_mb=",
-          std::to_string(options_.max_cache_bytes >> 20), ", and no session has been idle for --evict_idle_s=",
-          std::to_string(options_.evict_idle_s), " s to be evicted"));
-    }
+          std::to_string(sessions_.size()), " sessions holding ", std::to_string(held()), " bytes, ",
+          std::to_string(extra_bytes), " more bytes needed: the caps are --max_sessions=",
+          std::to_string(options_.max_sessions), " and --max_cache_mb=", std::to_string(options_.max_cache_bytes >> 20),
+          ", and no other session has been idle for --evict_idle_s=", std::to_string(options_.evict_idle_s),
+          " s to be evicted"));
   }
   return absl::OkStatus();
 }
 
 absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, const SessionOptions& options,
-                                                int tick_hz, int tick_deadline_ms, const std::string& proposed_id,
-                                                Clock::time_point deadline, std::string* id_out) {
+                                                int tick_deadline_ms, const std::string& proposed_id,
+                                                Clock::time_point deadline, std::string* id_out,
+                                                std::vector<MapFeature>* map) {
   if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
-  if (tick_hz == 0) tick_hz = 2;
-  if (tick_hz != 2 && tick_hz != 10)
-    return absl::InvalidArgumentError(absl::StrCat("tick_hz ", std::to_string(tick_hz), ": only 2 or 10"));
   if (tick_deadline_ms < 0) return absl::InvalidArgumentError("tick_deadline_ms must not be negative");
   std::string id;
   {
@@ -210,13 +181,12 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   auto s = std::make_shared<ManagedSession>();
   s->id = id;
   s->source = source;
-  s->tick_hz = tick_hz;
   s->tick_deadline_ms = tick_deadline_ms ? tick_deadline_ms : options_.default_tick_deadline_ms;
   absl::Status st = compute(deadline, [&] {
     auto session = session_create(engine_, source, options);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
-    s->bytes = s->session->memory_bytes() + source.womd_bytes.size();
+    s->bytes = session_memory_bytes(engine_, *s->session) + source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return st;
@@ -224,9 +194,11 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   TickView out;
   {
     std::lock_guard<std::mutex> l(s->mu);
-    s->publish(s->session->current());
+    s->publish(session_view(*s->session));
     out = s->recent.back();
   }
+  // Copied before the session is listed: from then on another call may close it.
+  if (map) *map = session_map_features(*s->session);
   {
     std::lock_guard<std::mutex> l(mu_);
     if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
@@ -236,7 +208,7 @@ absl::StatusOr<TickView> SessionManager::create(const SessionSource& source, con
   }
   spdlog::info("session {}: created on {} ({} mode, seed {}, {} Hz, {} agents, {} bytes)", id,
                source.scenario_name.empty() ? std::string("client-sent scenario") : source.scenario_name,
-               session_mode_name(options.mode), options.seed, tick_hz, out.view.agents.size(), s->bytes.load());
+               session_mode_name(options.mode), options.seed, options.tick_hz, out.view.agents.size(), s->bytes.load());
   *id_out = id;
   return out;
 }
@@ -251,49 +223,53 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::find(const std::
       return it->second;
     }
     if (!evicted_.count(id))
-      return absl::NotFoundError(absl::StrCat("session_id '", id, "' is not an open session"));
+      return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
     if (draining_) return absl::UnavailableError("the server is draining: evicted sessions are not restored now");
   }
   // Evicted earlier: bring it back from its snapshot.
-  auto s = restore_file(snapshot_path(options_.snapshot_dir, id), deadline);
+  auto s = restore_snapshot(id, deadline);
   if (!s.ok()) return s.status();
   std::lock_guard<std::mutex> l(mu_);
   auto it = sessions_.find(id);
   if (it != sessions_.end()) return it->second;  // another call restored it first
+  // A CloseSession while the snapshot was being read won: the session stays closed.
+  if (!evicted_.count(id))
+    return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " was closed while it was being restored"));
   if (auto st = make_room_locked((*s)->bytes); !st.ok()) return st;
   evicted_.erase(id);
   sessions_[id] = *s;
-  std::error_code ec;
-  std::filesystem::remove(snapshot_path(options_.snapshot_dir, id), ec);
+  // The snapshot stays until the session closes: a crash before the next save still finds it.
   spdlog::info("session {}: restored from its eviction snapshot at tick {}", id, (*s)->tick);
   return *s;
 }
 
-absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_file(const std::string& path,
-                                                                             Clock::time_point deadline) {
-  auto snap = read_snapshot(path);
+absl::StatusOr<std::shared_ptr<ManagedSession>> SessionManager::restore_snapshot(const std::string& id,
+                                                                                 Clock::time_point deadline) {
+  auto snap = read_snapshot(options_.snapshot_dir, id);
   if (!snap.ok()) return snap.status();
+  const std::string path = *snapshot_path(options_.snapshot_dir, id);
   auto s = std::make_shared<ManagedSession>();
   s->id = snap->session_id;
   s->source = snap->source;
-  s->tick_hz = snap->tick_hz;
   s->tick_deadline_ms = snap->tick_deadline_ms;
   absl::Status st = compute(deadline, [&] {
     auto session = session_restore(engine_, snap->source, snap->session_bytes);
     if (!session.ok()) return session.status();
     s->session = std::move(*session);
-    s->bytes = s->session->memory_bytes() + s->source.womd_bytes.size();
+    s->bytes = session_memory_bytes(engine_, *s->session) + s->source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return absl::Status(st.code(), absl::StrCat("snapshot ", path, ": ", std::string(st.message())));
   s->touch();
+  s->saved_changes = s->changes;  // its snapshot is on disk already
   std::lock_guard<std::mutex> l(s->mu);
-  s->tick = snap->tick;
-  s->publish(view_at(*s->session, s->tick_hz, s->tick));
+  s->tick = session_tick_index(*s->session);
+  s->publish(session_view(*s->session));
   return s;
 }
 
-absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n) {
+absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
+                                       Clock::time_point deadline, std::vector<TickView>* out) {
   int64_t tick;
   {
     std::lock_guard<std::mutex> l(s.mu);
@@ -303,37 +279,51 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
   for (int i = 0; i < n; ++i) {
     // The poses are for the first tick; later ticks of the call keep the controlled agents' last control.
     const std::vector<ControlInput>& controls_now = i == 0 ? controls : none;
-    const auto t0 = Clock::now();
+    // The cache cap holds as sessions grow: room for the largest growth of one tick seen so far, before the tick.
+    if (auto st = room_to_grow(s); !st.ok()) {
+      if (i == 0) return st;
+      return absl::Status(st.code(), absl::StrCat(st.message(), " (after ", std::to_string(i), " of ",
+                                                  std::to_string(n), " ticks; the session is at tick ",
+                                                  std::to_string(tick), ")"));
+    }
     StepResult view;
-    if (s.tick_hz == 2) {
-      auto r = s.session->step(controls_now);
+    // One compute slot per tick, not per call: a long call hands the slot over between its ticks, so a short call on
+    // another session waits for one tick rather than for all of them.
+    absl::Status st = compute(deadline, [&]() -> absl::Status {
+      const auto t0 = Clock::now();
+      auto r = session_tick(*s.session, controls_now);
       if (!r.ok()) return r.status();
       view = std::move(*r);
-    } else {
-      for (const ControlInput& c : controls_now) s.latest_pose[c.agent_id] = s.step_controls[c.agent_id] = c;
-      const int sub = static_cast<int>((tick + 1) % kTicksPerStep10Hz);
-      if (sub == 0) {
-        std::vector<ControlInput> at_step;
-        for (const auto& [id, c] : s.step_controls) at_step.push_back(c);
-        auto r = s.session->step(at_step);
-        if (!r.ok()) return r.status();
-        s.step_controls.clear();
-        view = std::move(*r);
-      } else {
-        std::vector<ControlInput> pushed;
-        for (const auto& [id, c] : s.latest_pose) pushed.push_back(c);
-        view = tick_between_steps(*s.session, sub, kTicksPerStep10Hz, pushed);
-      }
+      metrics_.count_step(std::chrono::duration<double>(Clock::now() - t0).count());
+      return absl::OkStatus();
+    });
+    if (!st.ok()) {
+      if (i == 0 || st.code() != absl::StatusCode::kDeadlineExceeded) return st;
+      return absl::Status(st.code(), absl::StrCat(st.message(), " (after ", std::to_string(i), " of ",
+                                                  std::to_string(n), " ticks; the session is at tick ",
+                                                  std::to_string(tick), ")"));
     }
-    ++tick;
-    s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
-    metrics_.count_step(std::chrono::duration<double>(Clock::now() - t0).count());
+    tick = session_tick_index(*s.session);
+    ++s.changes;
+    const uint64_t before = s.bytes;
+    s.bytes = session_memory_bytes(engine_, *s.session) + s.source.womd_bytes.size();
+    if (s.bytes > before) s.max_tick_growth = std::max(s.max_tick_growth, s.bytes - before);
     std::lock_guard<std::mutex> l(s.mu);
     s.tick = tick;
     s.publish(view);
+    out->push_back(s.recent.back());
     s.cv.notify_all();
   }
   return absl::OkStatus();
+}
+
+absl::Status SessionManager::room_to_grow(ManagedSession& s) {
+  std::lock_guard<std::mutex> l(mu_);
+  absl::Status st = make_room_locked(s.max_tick_growth, 0, &s);
+  if (st.ok()) return st;
+  return absl::ResourceExhaustedError(absl::StrCat(
+      "session '", s.id, "' (", std::to_string(s.bytes.load()), " bytes, up to ", std::to_string(s.max_tick_growth),
+      " more a tick) has no room to grow: ", st.message()));
 }
 
 absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id,
@@ -348,7 +338,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
   if (num_ticks < 0 || num_ticks > 1000)
     return absl::InvalidArgumentError(absl::StrCat("num_ticks ", std::to_string(num_ticks), ": must be in 1..1000"));
   std::unique_lock<std::mutex> l(s.mu);
-  if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session '", id, "' was closed"));
+  if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
   for (size_t i = 0; i < controls.size(); ++i)
     if (!s.controllers.count(controls[i].agent_id))
       return absl::InvalidArgumentError(absl::StrCat("poses[", std::to_string(i), "].agent_id ",
@@ -370,8 +360,9 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
   }
   for (const ControlInput& c : controls) s.pending[c.agent_id] = c;
   const int64_t target = s.tick + 1;
+  std::vector<TickView> out;  // the ticks this call computed (all of them, however many it asked for)
   while (s.tick < target) {
-    if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session '", id, "' was closed"));
+    if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
     if (s.failed_tick == target) return s.failed_status;
     // With one controller (or none) the caller is the only client: its call is the tick. With several, the tick
     // waits for every controller's pose or the session's tick deadline.
@@ -393,7 +384,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
         if (!e.try_lock_until(deadline))
           st = absl::DeadlineExceededError("the call's deadline passed while the session was busy");
         else
-          st = compute(deadline, [&] { return run_ticks(s, taken, num_ticks); });
+          st = run_ticks(s, taken, num_ticks, deadline, &out);
       }
       l.lock();
       s.stepping = false;
@@ -415,9 +406,9 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
     }
     s.cv.wait_until(l, s.stepping ? deadline : until);
   }
-  std::vector<TickView> out;
-  for (const TickView& t : s.recent)
-    if (t.tick >= target && t.tick < target + num_ticks) out.push_back(t);
+  if (out.empty())  // another controller's call computed the tick (multi-client calls ask for one tick)
+    for (const TickView& t : s.recent)
+      if (t.tick == target) out.push_back(t);
   s.touch();
   return out;
 }
@@ -434,15 +425,16 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
   std::vector<int64_t> ids;
   absl::Status st = compute(deadline, [&] {
-    auto r2 = s.session->inject(r);
+    auto r2 = session_inject(*s.session, r);
     if (!r2.ok()) return r2.status();
+    ++s.changes;
     ids = *r2;
-    s.bytes = s.session->memory_bytes() + s.source.womd_bytes.size();
+    s.bytes = session_memory_bytes(engine_, *s.session) + s.source.womd_bytes.size();
     return absl::OkStatus();
   });
   if (!st.ok()) return st;
   std::lock_guard<std::mutex> l(s.mu);
-  s.view = view_at(*s.session, s.tick_hz, s.tick);
+  s.view = session_view(*s.session);
   return ids;
 }
 
@@ -455,7 +447,9 @@ absl::Status SessionManager::state_force(const std::string& id, const StateForce
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
-  return s.session->state_force(r);
+  absl::Status st = session_force(*s.session, r);
+  if (st.ok()) ++s.changes;
+  return st;
 }
 
 absl::Status SessionManager::close(const std::string& id) {
@@ -465,20 +459,24 @@ absl::Status SessionManager::close(const std::string& id) {
     auto it = sessions_.find(id);
     if (it == sessions_.end()) {
       if (evicted_.erase(id)) {
-        std::error_code ec;
-        std::filesystem::remove(snapshot_path(options_.snapshot_dir, id), ec);
+        remove_snapshot(options_.snapshot_dir, id);
         spdlog::info("session {}: closed (was evicted)", id);
         return absl::OkStatus();
       }
-      return absl::NotFoundError(absl::StrCat("session_id '", id, "' is not an open session"));
+      return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
     }
     s = it->second;
     sessions_.erase(it);
   }
-  std::lock_guard<std::mutex> l(s->mu);
-  s->closed = true;
-  s->cv.notify_all();
-  spdlog::info("session {}: closed at tick {}", id, s->tick);
+  {
+    std::lock_guard<std::mutex> l(s->mu);
+    s->closed = true;
+    s->cv.notify_all();
+    end_watchers_locked(*s);
+    spdlog::info("session {}: closed at tick {}", id, s->tick);
+  }
+  // A background save running now checks `closed` after writing and removes its file too.
+  if (!options_.snapshot_dir.empty()) remove_snapshot(options_.snapshot_dir, id);
   return absl::OkStatus();
 }
 
@@ -486,8 +484,8 @@ static SessionInfo info_of(ManagedSession& s) {
   SessionInfo i;
   i.id = s.id;
   i.scenario_name = s.source.scenario_name;
-  i.options = s.session->options();  // immutable after create
-  i.tick_hz = s.tick_hz;
+  i.options = session_options(*s.session);  // immutable after create
+  i.tick_hz = i.options.tick_hz;
   i.memory_bytes = s.bytes;
   i.idle_seconds = s.idle_seconds();
   std::lock_guard<std::mutex> l(s.mu);
@@ -534,18 +532,15 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   auto f = std::make_shared<ManagedSession>();
   f->id = nid;
   f->source = s.source;
-  f->tick_hz = s.tick_hz;
   f->tick_deadline_ms = s.tick_deadline_ms;
   {
     std::unique_lock<std::timed_mutex> e(s.engine_mu, std::defer_lock);
     if (!e.try_lock_until(deadline)) return absl::DeadlineExceededError("the session stayed busy past the deadline");
     absl::Status st = compute(deadline, [&] {
-      f->session = s.session->fork();
+      f->session = session_fork(*s.session);
       return absl::OkStatus();
     });
     if (!st.ok()) return st;
-    f->latest_pose = s.latest_pose;
-    f->step_controls = s.step_controls;
     f->bytes = s.bytes.load();
     std::lock_guard<std::mutex> l(s.mu);
     f->tick = s.tick;
@@ -555,40 +550,46 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   {
     std::lock_guard<std::mutex> l(mu_);
     if (sessions_.count(nid)) return absl::AlreadyExistsError(absl::StrCat("session_id '", nid, "' is in use"));
+    // Again at insert: other forks may have filled the room while this one waited for its busy source.
+    if (auto st = make_room_locked(f->bytes); !st.ok()) return st;
     sessions_[nid] = f;
   }
   spdlog::info("session {}: forked from {} at tick {}", nid, id, f->tick);
   return nid;
 }
 
-absl::Status SessionManager::watch(const std::string& id, const std::function<bool(const TickView&)>& send,
-                                   const std::function<bool()>& cancelled) {
+absl::Status SessionManager::watch_add(const std::string& id, std::shared_ptr<TickWatcher> w) {
+  if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new watch streams");
   auto found = find(id, Clock::now() + std::chrono::seconds(30));
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
-  int64_t next;
-  TickView first;
-  {
-    std::lock_guard<std::mutex> l(s.mu);
-    first = {s.tick, s.view};
-    next = s.tick + 1;
+  if (++watchers_ > options_.max_watchers) {
+    --watchers_;
+    return absl::ResourceExhaustedError(absl::StrCat("--max_watchers=", std::to_string(options_.max_watchers),
+                                                     " watch streams are open: close one first"));
   }
-  if (!send(first)) return absl::OkStatus();
-  while (!cancelled() && !draining_) {
-    std::vector<TickView> batch;
-    {
-      std::unique_lock<std::mutex> l(s.mu);
-      s.cv.wait_for(l, std::chrono::milliseconds(200), [&] { return s.closed || s.tick >= next; });
-      for (const TickView& t : s.recent)
-        if (t.tick >= next) batch.push_back(t);
-      if (batch.empty() && s.closed) return absl::OkStatus();
-    }
-    for (const TickView& t : batch) {
-      if (!send(t)) return absl::OkStatus();
-      next = t.tick + 1;
-    }
+  std::lock_guard<std::mutex> l(s.mu);
+  if (s.closed) {
+    --watchers_;
+    return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
   }
+  s.watchers.push_back(w);
+  w->on_tick({s.tick, s.view});
   return absl::OkStatus();
+}
+
+void SessionManager::start_draining() {
+  draining_ = true;
+  std::lock_guard<std::mutex> l(mu_);
+  for (const auto& [id, s] : sessions_) {
+    std::lock_guard<std::mutex> sl(s->mu);
+    end_watchers_locked(*s);
+  }
+}
+
+void SessionManager::end_watchers_locked(ManagedSession& s) {
+  for (const auto& w : s.watchers) w->on_end();
+  s.watchers.clear();
 }
 
 int SessionManager::save_all() {
@@ -613,27 +614,87 @@ int SessionManager::save_all() {
 int SessionManager::restore_all() {
   if (options_.snapshot_dir.empty()) return 0;
   int n = 0;
-  for (const std::string& path : list_snapshots(options_.snapshot_dir)) {
-    auto s = restore_file(path, Clock::now() + std::chrono::minutes(10));
+  for (const std::string& id : list_snapshots(options_.snapshot_dir)) {
+    if (auto st = check_session_id(id); !st.ok()) {
+      spdlog::error("snapshot {}: not restored: the file name is not a session id: {}", echo_id(id),
+                    std::string(st.message()));
+      continue;
+    }
+    // The caps hold on a restart too: sessions beyond them stay evicted and come back on their next call.
+    {
+      std::lock_guard<std::mutex> l(mu_);
+      if (static_cast<int>(sessions_.size()) >= options_.max_sessions) {
+        evicted_.insert(id);
+        spdlog::info("session {}: left evicted (--max_sessions={} reached); restored on its next call", id,
+                     options_.max_sessions);
+        continue;
+      }
+    }
+    auto s = restore_snapshot(id, Clock::now() + std::chrono::minutes(10));
     if (!s.ok()) {
-      spdlog::error("{}: not restored: {}", path, std::string(s.status().message()));
+      spdlog::error("session {}: not restored: {}", id, std::string(s.status().message()));
       continue;
     }
     {
       std::lock_guard<std::mutex> l(mu_);
-      sessions_[(*s)->id] = *s;
+      uint64_t held = (*s)->bytes;
+      for (const auto& [other, o] : sessions_) held += o->bytes;
+      if (held > options_.max_cache_bytes) {
+        evicted_.insert(id);
+        spdlog::info("session {}: left evicted ({} bytes would pass --max_cache_mb={}); restored on its next call",
+                     id, (*s)->bytes.load(), options_.max_cache_bytes >> 20);
+        continue;
+      }
+      sessions_[id] = *s;
     }
-    std::error_code ec;
-    std::filesystem::remove(path, ec);
-    spdlog::info("session {}: restored from {} at tick {}", (*s)->id, path, (*s)->tick);
+    spdlog::info("session {}: restored at tick {}", id, (*s)->tick);
     ++n;
   }
   return n;
 }
 
+void SessionManager::save_changed() {
+  std::vector<std::shared_ptr<ManagedSession>> all;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    for (const auto& [id, s] : sessions_) all.push_back(s);
+  }
+  int saved = 0;
+  for (const auto& s : all) {
+    if (stop_ || draining_) return;
+    // A session busy in an engine call is saved at the next interval.
+    std::unique_lock<std::timed_mutex> e(s->engine_mu, std::try_to_lock);
+    if (!e.owns_lock() || s->changes == s->saved_changes) continue;
+    absl::Status st = compute(Clock::now() + std::chrono::seconds(10), [&] { return save(*s); });
+    if (!st.ok()) {
+      spdlog::warn("session {}: background snapshot failed: {}", s->id, std::string(st.message()));
+      continue;
+    }
+    ++saved;
+    bool closed;
+    {
+      std::lock_guard<std::mutex> l(s->mu);
+      closed = s->closed;
+    }
+    if (closed && !evicted_contains(s->id)) remove_snapshot(options_.snapshot_dir, s->id);
+  }
+  if (saved) spdlog::debug("background snapshots: {} sessions saved", saved);
+}
+
+bool SessionManager::evicted_contains(const std::string& id) {
+  std::lock_guard<std::mutex> l(mu_);
+  return evicted_.count(id) > 0;
+}
+
 void SessionManager::reaper() {
+  auto last_save = Clock::now();
   while (!stop_) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (!options_.snapshot_dir.empty() && options_.snapshot_interval_s > 0 &&
+        Clock::now() - last_save >= std::chrono::duration<double>(options_.snapshot_interval_s)) {
+      save_changed();
+      last_save = Clock::now();
+    }
     std::vector<std::string> expired;
     {
       std::lock_guard<std::mutex> l(mu_);

@@ -27,12 +27,14 @@ using Clock = std::chrono::steady_clock;
 
 struct ManagerOptions {
   std::string snapshot_dir;          // empty: no snapshots (eviction then drops the session)
+  double snapshot_interval_s = 30;   // changed sessions are saved this often (0: only on eviction and SIGTERM)
   int max_sessions = 256;
   uint64_t max_cache_bytes = uint64_t{8} << 30;
   double idle_timeout_s = 3600;      // a session unused this long is closed
   double evict_idle_s = 30;          // a session unused this long may be evicted (LRU) to make room
   int compute_threads = 2;           // engine calls running at once
   int default_tick_deadline_ms = 2000;
+  int max_watchers = 1024;           // WatchSession streams open at once, over all sessions
 };
 
 struct SessionInfo {
@@ -55,14 +57,29 @@ struct TickView {
 
 struct ManagedSession;
 
+// Receives one session's ticks as they are computed (a WatchSession stream), with no thread of its own. The manager
+// calls it with its locks held, so it must not block or call the manager back; it may call gRPC (whose reactions
+// may run inline, so the watcher's own lock must allow that).
+class TickWatcher {
+ public:
+  virtual ~TickWatcher() = default;
+  // A tick, the current one first.
+  virtual void on_tick(const TickView& t) = 0;
+  // No more ticks: the session closed or was evicted, or the server drains.
+  virtual void on_end() = 0;
+  // True once the stream is over (the manager then drops it).
+  virtual bool done() const = 0;
+};
+
 class SessionManager {
  public:
   SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics);
   ~SessionManager();
 
-  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_hz,
-                                  int tick_deadline_ms, const std::string& proposed_id, Clock::time_point deadline,
-                                  std::string* id);
+  // A new session; its id in `id`, and its scenario's map features in `map` when given (CreateSession's include_map).
+  absl::StatusOr<TickView> create(const SessionSource& source, const SessionOptions& options, int tick_deadline_ms,
+                                  const std::string& proposed_id, Clock::time_point deadline, std::string* id,
+                                  std::vector<MapFeature>* map = nullptr);
   // One call's ticks. In a multi-client session the caller waits for the other controllers (or the tick deadline).
   absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::vector<ControlInput>& controls,
                                              int num_ticks, Clock::time_point deadline);
@@ -74,12 +91,15 @@ class SessionManager {
   absl::StatusOr<std::string> fork(const std::string& id, const std::string& proposed_id,
                                    Clock::time_point deadline);
   std::vector<SessionInfo> list();
-  // Calls `send` with every tick from the current one on until the session closes, the server drains, `send`
-  // returns false or `cancelled` returns true.
-  absl::Status watch(const std::string& id, const std::function<bool(const TickView&)>& send,
-                     const std::function<bool()>& cancelled);
+  // Registers `w` for every tick of session `id` from the current one on (given to it before this returns), until
+  // on_end() or w->done(). RESOURCE_EXHAUSTED beyond --max_watchers streams not yet done.
+  absl::Status watch_add(const std::string& id, std::shared_ptr<TickWatcher> w);
+  // A stream registered by watch_add is over (its place under --max_watchers is free again). Takes no lock.
+  void watch_done() { --watchers_; }
+  int watchers() const { return watchers_; }
 
-  void start_draining() { draining_ = true; }
+  // Refuses new work and ends every watch stream.
+  void start_draining();
   bool draining() const { return draining_; }
   // Saves every session to the snapshot directory (after the gRPC server stopped).
   int save_all();
@@ -91,14 +111,25 @@ class SessionManager {
  private:
   absl::StatusOr<std::shared_ptr<ManagedSession>> find(const std::string& id, Clock::time_point deadline);
   absl::StatusOr<std::string> new_id(const std::string& proposed);
-  // Evicts idle sessions (LRU) until one more session holding `extra_bytes` fits. Holds mu_.
-  absl::Status make_room_locked(uint64_t extra_bytes);
+  // Evicts idle sessions other than `keep` (LRU) until `extra_sessions` more sessions and `extra_bytes` more bytes
+  // fit under the caps; RESOURCE_EXHAUSTED when they cannot. Holds mu_.
+  absl::Status make_room_locked(uint64_t extra_bytes, int extra_sessions = 1, const ManagedSession* keep = nullptr);
+  // Room under --max_cache_mb for one more tick of `s` (its largest growth so far), evicting idle sessions if needed.
+  absl::Status room_to_grow(ManagedSession& s);
   absl::Status evict_locked(const std::shared_ptr<ManagedSession>& s);
   absl::Status save(ManagedSession& s);
-  absl::StatusOr<std::shared_ptr<ManagedSession>> restore_file(const std::string& path, Clock::time_point deadline);
+  absl::StatusOr<std::shared_ptr<ManagedSession>> restore_snapshot(const std::string& id, Clock::time_point deadline);
   // Runs `fn` on a compute slot (bounded by compute_threads), or DEADLINE_EXCEEDED when none frees up in time.
   absl::Status compute(Clock::time_point deadline, const std::function<absl::Status()>& fn);
-  absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n);
+  // Runs n ticks, each on a compute slot of its own, appending each tick's view to `out`.
+  absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
+                         Clock::time_point deadline, std::vector<TickView>* out);
+  // Saves every session that changed since its last snapshot (the background snapshots).
+  void save_changed();
+  bool evicted_contains(const std::string& id);
+  // Ends and drops the watchers of `s`. Holds s.mu.
+  void end_watchers_locked(ManagedSession& s);
+  // Closes idle sessions and writes the background snapshots.
   void reaper();
 
   Engine& engine_;
@@ -109,6 +140,7 @@ class SessionManager {
   std::map<std::string, std::shared_ptr<ManagedSession>> sessions_;
   std::set<std::string> evicted_;  // saved to the snapshot directory, restored on their next call
   std::atomic<bool> draining_{false};
+  std::atomic<int> watchers_{0};
   std::atomic<bool> stop_{false};
   std::thread reaper_;
 };

@@ -1,15 +1,16 @@
 #include "server/simulator_service.h"
 
+#include <atomic>
+#include <deque>
+#include <memory>
+#include <mutex>
+
 #include "absl/strings/str_cat.h"
+#include "server/session_id.h"
 #include "spdlog/spdlog.h"
 
 namespace ss::server {
 namespace {
-
-::grpc::Status to_grpc(const absl::Status& st) {
-  if (st.ok()) return ::grpc::Status::OK;
-  return ::grpc::Status(static_cast<::grpc::StatusCode>(static_cast<int>(st.code())), std::string(st.message()));
-}
 
 void info_to_proto(const SessionInfo& i, pb::SessionInfo* o) {
   o->set_session_id(i.id);
@@ -27,6 +28,17 @@ void info_to_proto(const SessionInfo& i, pb::SessionInfo* o) {
   o->set_idle_seconds(i.idle_seconds);
   o->set_roi_radius(i.options.roi_radius);
   o->set_max_agents(i.options.max_agents);
+}
+
+// A router hashes the x-session-id metadata before the session exists, so the id it routed by is the session's: it
+// stands in for an empty session_id, and one that differs from session_id would strand the session.
+absl::StatusOr<std::string> proposed_session_id(const ::grpc::ServerContext& ctx, const std::string& field) {
+  const auto m = ctx.client_metadata().find("x-session-id");
+  if (m == ctx.client_metadata().end()) return field;
+  const std::string routed(m->second.data(), m->second.size());
+  if (field.empty() || routed == field) return routed;
+  return absl::InvalidArgumentError(absl::StrCat("session_id ", echo_id(field), " differs from the x-session-id metadata ",
+                                                 echo_id(routed), " the call was routed by"));
 }
 
 }  // namespace
@@ -65,28 +77,16 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   if (source.scenario_name.empty() && source.womd_bytes.empty())
     return finish("CreateSession", r->session_id(),
                   absl::InvalidArgumentError("scenario: scenario_name or womd_scenario is empty"));
-  // The scenario's map, for the events and the client (a client's bytes are parsed here and again by the session).
-  auto scenario = engine_scenario(engine_, source);
-  if (!scenario.ok()) return finish("CreateSession", r->session_id(), scenario.status());
-  // A router hashes the x-session-id metadata before the session exists, so the id it routed by is the session's:
-  // it stands in for an empty session_id, and one that differs from session_id would strand the session.
-  std::string proposed = r->session_id();
-  if (const auto m = ctx->client_metadata().find("x-session-id"); m != ctx->client_metadata().end()) {
-    const std::string routed(m->second.data(), m->second.size());
-    if (proposed.empty()) proposed = routed;
-    else if (routed != proposed)
-      return finish("CreateSession", proposed,
-                    absl::InvalidArgumentError(absl::StrCat("session_id '", proposed.substr(0, 64),
-                                                            "' differs from the x-session-id metadata '",
-                                                            routed.substr(0, 64), "' the call was routed by")));
-  }
+  auto proposed = proposed_session_id(*ctx, r->session_id());
+  if (!proposed.ok()) return finish("CreateSession", r->session_id(), proposed.status());
   std::string id;
-  auto t = sessions_.create(source, *options, r->tick_hz(), r->tick_deadline_ms(), proposed, deadline(ctx), &id);
-  if (!t.ok()) return finish("CreateSession", proposed, t.status());
+  std::vector<MapFeature> map;
+  auto t = sessions_.create(source, *options, r->tick_deadline_ms(), *proposed, deadline(ctx), &id,
+                            r->include_map() ? &map : nullptr);
+  if (!t.ok()) return finish("CreateSession", *proposed, t.status());
   out->set_session_id(id);
   tick_to_proto(t->view, t->tick, out->mutable_initial());
-  event_maps_.add(id, source.scenario_name, *scenario);
-  if (r->include_map()) map_to_proto(**scenario, out);
+  map_to_proto(map, out);
   return finish("CreateSession", id, absl::OkStatus());
 }
 
@@ -94,19 +94,9 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   InFlight guard(in_flight_);
   auto controls = controls_from_proto(*r);
   if (!controls.ok()) return finish("StepScene", r->session_id(), controls.status());
-  // The tick before this call's ticks: the events (a stop line crossed, progress) are measured from it.
-  auto before = sessions_.get(r->session_id());
-  if (!before.ok()) return finish("StepScene", r->session_id(), before.status());
   auto ticks = sessions_.step(r->session_id(), *controls, r->num_ticks(), deadline(ctx));
   if (!ticks.ok()) return finish("StepScene", r->session_id(), ticks.status());
-  const auto map = event_maps_.find(r->session_id(), before->first.scenario_name);
-  const StepResult* previous = &before->second.view;
-  for (const TickView& t : *ticks) {
-    pb::Tick* tick = out->add_ticks();
-    tick_to_proto(t.view, t.tick, tick);
-    if (map) events_to_proto(tick_events(*map, *previous, t.view), tick);
-    previous = &t.view;
-  }
+  for (const TickView& t : *ticks) tick_to_proto(t.view, t.tick, out->add_ticks());
   return finish("StepScene", r->session_id(), absl::OkStatus());
 }
 
@@ -129,9 +119,7 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
 }
 
 ::grpc::Status SimulatorService::CloseSession(Ctx*, const pb::CloseSessionRequest* r, pb::CloseSessionResponse*) {
-  const absl::Status st = sessions_.close(r->session_id());
-  if (st.ok()) event_maps_.remove(r->session_id());
-  return finish("CloseSession", r->session_id(), st);
+  return finish("CloseSession", r->session_id(), sessions_.close(r->session_id()));
 }
 
 ::grpc::Status SimulatorService::GetSession(Ctx*, const pb::GetSessionRequest* r, pb::GetSessionResponse* out) {
@@ -146,7 +134,6 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   InFlight guard(in_flight_);
   auto id = sessions_.fork(r->session_id(), r->new_session_id(), deadline(ctx));
   if (!id.ok()) return finish("ForkSession", r->session_id(), id.status());
-  event_maps_.fork(r->session_id(), *id);
   out->set_session_id(*id);
   return finish("ForkSession", r->session_id(), absl::OkStatus());
 }
@@ -168,17 +155,100 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   return finish("ListSessions", "-", absl::OkStatus());
 }
 
-::grpc::Status SimulatorService::WatchSession(Ctx* ctx, const pb::WatchSessionRequest* r,
-                                              ::grpc::ServerWriter<pb::Tick>* writer) {
-  auto st = sessions_.watch(
-      r->session_id(),
-      [&](const TickView& t) {
-        pb::Tick tick;
-        tick_to_proto(t.view, t.tick, &tick);
-        return writer->Write(tick);
-      },
-      [&] { return ctx->IsCancelled(); });
-  return finish("WatchSession", r->session_id(), st);
+namespace {
+
+// One WatchSession stream: ticks queue here as the session computes them and are written one at a time. A watcher
+// that reads slower than the session steps loses the oldest queued ticks beyond kMaxQueued, as a watcher of the
+// old thread-per-stream loop did beyond the session's recent ticks. The lock is recursive because gRPC may run
+// OnWriteDone inline from StartWrite; the manager holds a reference while it calls in, and `self_` keeps the
+// reactor alive until OnDone.
+class WatchReactor final : public ::grpc::ServerWriteReactor<pb::Tick>, public TickWatcher {
+ public:
+  static std::shared_ptr<WatchReactor> make(SessionManager& sessions) {
+    auto r = std::shared_ptr<WatchReactor>(new WatchReactor(sessions));
+    r->self_ = r;
+    return r;
+  }
+
+  void on_tick(const TickView& t) override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    if (finished_ || t.tick <= last_tick_) return;
+    last_tick_ = t.tick;
+    if (queue_.size() >= kMaxQueued) queue_.erase(queue_.begin() + 1);  // the front may be being written
+    tick_to_proto(t.view, t.tick, &queue_.emplace_back());
+    if (!writing_) {
+      writing_ = true;
+      StartWrite(&queue_.front());
+    }
+  }
+  void on_end() override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    ended_ = true;
+    if (!writing_) finish_locked(::grpc::Status::OK);
+  }
+  bool done() const override { return done_; }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    writing_ = false;
+    queue_.pop_front();
+    if (!ok) return finish_locked(::grpc::Status(::grpc::StatusCode::CANCELLED, "the stream broke"));
+    if (!queue_.empty() && !finished_) {
+      writing_ = true;
+      StartWrite(&queue_.front());
+    } else if (ended_) {
+      finish_locked(::grpc::Status::OK);
+    }
+  }
+  void OnCancel() override {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    finish_locked(::grpc::Status::CANCELLED);
+  }
+  void OnDone() override {
+    if (registered_) sessions_.watch_done();
+    done_ = true;
+    auto last_reference = std::move(self_);  // may free this reactor when the function returns
+  }
+  void registered() { registered_ = true; }
+  void fail(const ::grpc::Status& st) {
+    std::lock_guard<std::recursive_mutex> l(mu_);
+    finish_locked(st);
+  }
+
+ private:
+  explicit WatchReactor(SessionManager& sessions) : sessions_(sessions) {}
+  static constexpr size_t kMaxQueued = 64;
+  void finish_locked(const ::grpc::Status& st) {
+    if (finished_) return;
+    finished_ = true;
+    Finish(st);
+  }
+
+  SessionManager& sessions_;
+  std::shared_ptr<WatchReactor> self_;
+  std::recursive_mutex mu_;
+  std::deque<pb::Tick> queue_;  // front: being written when writing_
+  int64_t last_tick_ = -1;
+  bool writing_ = false;
+  bool ended_ = false;
+  bool finished_ = false;
+  bool registered_ = false;
+  std::atomic<bool> done_{false};
+};
+
+}  // namespace
+
+::grpc::ServerWriteReactor<pb::Tick>* SimulatorService::WatchSession(::grpc::CallbackServerContext*,
+                                                                   const pb::WatchSessionRequest* r) {
+  auto reactor = WatchReactor::make(sessions_);
+  const absl::Status st = sessions_.watch_add(r->session_id(), reactor);
+  if (st.ok()) {
+    reactor->registered();
+    metrics_.count_call("WatchSession");
+  } else {
+    reactor->fail(finish("WatchSession", r->session_id(), st));
+  }
+  return reactor.get();
 }
 
 }  // namespace ss::server

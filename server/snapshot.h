@@ -1,6 +1,8 @@
-// A session's snapshot file: what the server adds around Session::save() bytes (the scenario source, the tick
-// clock), so a restarted or evicted session continues exactly where it was. Written through a temporary file renamed
-// into place, so a crash never leaves half a snapshot.
+// A session's snapshot file: what the server adds around Session::save() bytes (the scenario source, the
+// multi-client tick deadline), so a restarted or evicted session continues exactly where it was. The file is named after the session id
+// (checked against the id rule, never taken from inside a file), ends with an FNV-1a checksum of everything before it
+// (a flipped bit is refused, not restored), and is written through a temporary file renamed into place, so a crash
+// never leaves half a snapshot.
 #pragma once
 
 #include <cstdint>
@@ -15,16 +17,18 @@ namespace ss::server {
 struct Snapshot {
   std::string session_id;
   SessionSource source;
-  int tick_hz = 2;
   int tick_deadline_ms = 0;
-  int64_t tick = 0;
-  std::string session_bytes;  // Session::save()
+  std::string session_bytes;  // Session::save(): the engine's state, its tick clock included
 };
 
-std::string snapshot_path(const std::string& dir, const std::string& session_id);
+// INVALID_ARGUMENT for an id that breaks the session id rule (so no id names a file outside `dir`).
+absl::StatusOr<std::string> snapshot_path(const std::string& dir, const std::string& session_id);
 absl::Status write_snapshot(const std::string& dir, const Snapshot& s);
-absl::StatusOr<Snapshot> read_snapshot(const std::string& path);
-// Every snapshot file in `dir` (paths).
+// The snapshot of `session_id` in `dir`; DATA_LOSS naming what is wrong for a corrupt file, FAILED_PRECONDITION for
+// one of another format version.
+absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string& session_id);
+// The session ids of every snapshot file in `dir`, sorted.
 std::vector<std::string> list_snapshots(const std::string& dir);
+void remove_snapshot(const std::string& dir, const std::string& session_id);
 
 }  // namespace ss::server

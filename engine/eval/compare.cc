@@ -5,7 +5,7 @@
 #include <limits>
 
 #include "absl/strings/str_cat.h"
-#include "engine/sim/rng.h"
+#include "engine/base/rng.h"
 
 namespace ss {
 namespace {

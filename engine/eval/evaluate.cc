@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "engine/base/rng.h"
 #include "engine/eval/baselines.h"
 #include "engine/eval/model_rollout.h"
 #include "engine/eval/scene_features.h"
@@ -12,13 +13,6 @@
 
 namespace ss {
 namespace {
-
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 // Per-rollout means of the MMD values that are defined.
 struct MmdMean {
@@ -85,9 +79,7 @@ const char* realism_window_name(int window) {
 }
 
 uint64_t rollout_seed(uint64_t base, const std::string& scenario_id, int rollout) {
-  uint64_t h = 0xCBF29CE484222325ull;  // FNV-1a: the same on every platform, unlike std::hash
-  for (unsigned char c : scenario_id) h = (h ^ c) * 0x100000001B3ull;
-  return splitmix64(splitmix64(base ^ h) + static_cast<uint64_t>(rollout));
+  return mix_seed(mix_seed(base ^ fnv1a64(scenario_id)) + static_cast<uint64_t>(rollout));
 }
 
 absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scenario> scenario, const EvalOptions& options,

@@ -129,4 +129,10 @@ double RoadEdges::signed_distance(double x, double y, double z) const {
   return sign * best_2d;
 }
 
+size_t RoadEdges::bytes() const {
+  size_t b = sizeof(*this) + segments_.capacity() * sizeof(Segment) + cells_.capacity() * sizeof(cells_[0]);
+  for (const auto& c : cells_) b += c.capacity() * sizeof(int);
+  return b;
+}
+
 }  // namespace ss

@@ -22,6 +22,7 @@ class RoadEdges {
   // overpass's edge is not taken for the road below) decides; the sign is + on its right (off-road), from the
   // neighbouring segment where the point lies beyond the segment's end (convex corners count as off-road).
   double signed_distance(double x, double y, double z) const;
+  size_t bytes() const;  // memory held by the segments and the grid
 
  private:
   struct Segment {

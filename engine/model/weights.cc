@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "engine/base/rng.h"
 #include "engine/io/file_io.h"
 #include "nlohmann/json.hpp"
 
@@ -28,48 +29,11 @@ constexpr double kInitStd = 0.02;
 // ---------------------------------------------------------------------------------------------------------------
 // Deterministic random init.
 
-// splitmix64: expands a 64-bit seed into well-mixed words (the seeding procedure xoshiro's authors recommend).
-uint64_t splitmix64(uint64_t& state) {
-  uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
-// xoshiro256** (Blackman & Vigna): fast, statistically strong, and fully specified, unlike std:: engines'
-// distributions.
-class Xoshiro256 {
- public:
-  explicit Xoshiro256(uint64_t seed) {
-    for (uint64_t& w : s_) w = splitmix64(seed);
-  }
-  uint64_t next() {
-    const uint64_t result = std::rotl(s_[1] * 5, 7) * 9;
-    const uint64_t t = s_[1] << 17;
-    s_[2] ^= s_[0];
-    s_[3] ^= s_[1];
-    s_[1] ^= s_[2];
-    s_[0] ^= s_[3];
-    s_[2] ^= t;
-    s_[3] = std::rotl(s_[3], 45);
-    return result;
-  }
-
- private:
-  uint64_t s_[4];
-};
-
-uint64_t fnv1a64(std::string_view s) {
-  uint64_t h = 0xCBF29CE484222325ull;
-  for (unsigned char c : s) h = (h ^ c) * 0x100000001B3ull;
-  return h;
-}
-
 // N(0, std) by Box-Muller, computed in double and rounded to float. No expression has the a * b + c form, so FMA
 // contraction cannot change results between compilers; the remaining dependence is libm's log/sin/cos, whose
 // last-ulp differences in double almost never survive the rounding to float.
 void fill_normal(std::vector<float>& out, uint64_t stream_seed, double std_dev) {
-  Xoshiro256 rng(stream_seed);
+  Rng rng(stream_seed);
   constexpr double kTwoPi = 6.283185307179586476925286766559;
   for (size_t i = 0; i < out.size(); i += 2) {
     const double u1 = static_cast<double>((rng.next() >> 11) + 1) * 0x1p-53;  // (0, 1]: log(u1) is finite
@@ -437,8 +401,7 @@ Weights init_weights(const ModelConfig& config, uint64_t seed) {
   w.config = config;
   // Each tensor draws from its own stream keyed by (seed, name), so adding or reordering parameters leaves the
   // others' values unchanged.
-  uint64_t mixed_seed = seed;
-  mixed_seed = splitmix64(mixed_seed);
+  const uint64_t mixed_seed = mix_seed(seed);
   for (const TensorSpec& spec : model_parameter_specs(config)) {
     Tensor t;
     t.shape = spec.shape;

@@ -4,6 +4,7 @@
 #include <unordered_set>
 
 #include "absl/strings/str_cat.h"
+#include "engine/geometry/limits.h"
 
 namespace ss {
 namespace {
@@ -17,6 +18,8 @@ bool finite(double v) { return std::isfinite(v); }
 absl::Status check_point(const std::string& where, const std::string& field, const MapPoint& p) {
   if (!finite(p.x) || !finite(p.y) || !finite(p.z))
     return bad(where, absl::StrCat(field, " has a non-finite coordinate (", p.x, ", ", p.y, ", ", p.z, ")"));
+  if (std::abs(p.x) > kMaxCoordinate || std::abs(p.y) > kMaxCoordinate || std::abs(p.z) > kMaxCoordinate)
+    return bad(where, absl::StrCat(field, " (", p.x, ", ", p.y, ", ", p.z, ") lies beyond ", kMaxCoordinate, " m"));
   return absl::OkStatus();
 }
 
@@ -51,6 +54,10 @@ absl::Status validate_scenario(const Scenario& s, const std::string& where) {
           {"velocity_y", st.vy}};
       for (const auto& [field, v] : fields)
         if (!finite(v)) return bad(where, absl::StrCat(name, " states[", f, "].", field, " is ", v));
+      if (std::abs(st.x) > kMaxCoordinate || std::abs(st.y) > kMaxCoordinate || std::abs(st.z) > kMaxCoordinate)
+        return bad(where, absl::StrCat(name, " states[", f, "] lies beyond ", kMaxCoordinate, " m"));
+      if (std::abs(st.heading) > kMaxHeading)
+        return bad(where, absl::StrCat(name, " states[", f, "].heading ", st.heading, " is beyond +-", kMaxHeading));
       if (st.length < 0 || st.width < 0 || st.height < 0)
         return bad(where, absl::StrCat(name, " states[", f, "] has a negative box size"));
     }

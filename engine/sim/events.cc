@@ -39,6 +39,12 @@ EventMap event_map_from_scenario(const Scenario& scenario) {
   return m;
 }
 
+size_t EventMap::bytes() const {
+  size_t b = sizeof(*this) + edges.bytes() + lanes.capacity() * sizeof(Lane);
+  for (const Lane& l : lanes) b += l.points.capacity() * sizeof(Vec2) + l.s.capacity() * sizeof(double);
+  return b;
+}
+
 LanePosition lane_position(const EventMap& map, const Pose& pose) {
   LanePosition best;
   double best_d = kLaneMaxDistance;

@@ -1,7 +1,7 @@
 // What happened to each controlled agent between two ticks of a session: box overlaps with other agents, off road,
-// a red light run, and where the agent is along its lane. RL clients build rewards and terminations from these, so
-// the rules live here once instead of being guessed by every client. Pure functions of the scenario's map and two
-// consecutive tick views (no session state), so a host can compute them for any tick it holds.
+// a red light run, and where the agent is along its lane. The session computes them at every tick (Session::tick)
+// and hands them to hosts in the tick's StepResult (the plain AgentEvents of session_types.h). Pure functions of
+// the scenario's map and two consecutive tick views, so tests can drive them without a session.
 #pragma once
 
 #include <cstdint>
@@ -10,7 +10,7 @@
 #include "engine/geometry/geometry.h"
 #include "engine/map/road_edges.h"
 #include "engine/scenario/scenario.h"
-#include "engine/sim/session.h"
+#include "engine/sim/session_types.h"
 
 namespace ss {
 
@@ -29,34 +29,13 @@ struct EventMap {
   };
   std::vector<Lane> lanes;       // lanes with at least 2 points, in map order
   RoadEdges edges{{}};           // road edges flattened to the plane (agents carry no height)
+  size_t bytes() const;          // memory held (a client-sent scenario's map is its session's alone)
 };
 
 EventMap event_map_from_scenario(const Scenario& scenario);
 
-// Where an agent is on its lane: the nearest lane centre whose direction is within 90 degrees of the agent's heading.
-struct LanePosition {
-  int64_t lane_id = -1;          // -1: no lane within kLaneMaxDistance
-  double s = 0;                  // metres along the lane from its first point to the agent's projection
-  double offset = 0;             // signed lateral distance of the centre, + left of the lane direction
-  double heading_error = 0;      // agent heading minus lane direction, [-pi, pi)
-  Vec2 direction;                // unit lane direction at the projection
-};
-
+// The lane position of an agent at `pose` (LanePosition, session_types.h).
 LanePosition lane_position(const EventMap& map, const Pose& pose);
-
-// One controlled agent's events at a tick.
-struct AgentEvents {
-  int64_t agent_id = 0;
-  std::vector<int64_t> overlapping;  // ids of agents whose boxes overlap this agent's box, ascending
-  double road_edge_distance = 0;     // the most off-road box corner's signed distance to the road edge (+: off);
-                                     // NaN when the map has no road edge
-  bool off_road = false;             // road_edge_distance > 0
-  bool ran_red_light = false;        // the centre crossed a red light's stop line since the previous tick
-  int64_t red_light_lane = -1;       // that light's lane
-  LanePosition lane;
-  double progress = 0;               // the centre's displacement since the previous tick along its lane's
-                                     // direction (at the new position, else the old); 0 off every lane
-};
 
 // Events of every controlled agent of `after`, measured against `before` (the previous tick of the same session)
 // for the crossing and the progress; an agent absent from `before` (it just entered) has neither. A light counts

@@ -2,17 +2,15 @@
 
 #include <cstring>
 
+#include "engine/base/rng.h"
 #include "engine/map/focus.h"
 
 namespace ss {
 namespace {
 
 struct Fnv {
-  uint64_t h = 1469598103934665603ull;
-  void bytes(const void* p, size_t n) {
-    const auto* c = static_cast<const unsigned char*>(p);
-    for (size_t i = 0; i < n; ++i) h = (h ^ c[i]) * 1099511628211ull;
-  }
+  uint64_t h = kFnv1aOffset;
+  void bytes(const void* p, size_t n) { h = fnv1a64_bytes(p, n, h); }
   template <typename T>
   void pod(const T& v) { bytes(&v, sizeof v); }
 };

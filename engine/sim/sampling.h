@@ -3,7 +3,7 @@
 
 #include <span>
 
-#include "engine/sim/rng.h"
+#include "engine/base/rng.h"
 
 namespace ss {
 

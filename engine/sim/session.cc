@@ -6,8 +6,11 @@
 #include <set>
 
 #include "absl/strings/str_cat.h"
+#include "engine/geometry/limits.h"
 #include "engine/map/focus.h"
+#include "engine/sim/events.h"
 #include "engine/sim/sampling.h"
+#include "engine/sim/tick.h"
 #include "engine/sim/token_builders.h"
 #include "engine/tokens/agent_state.h"
 #include "engine/tokens/fidelity.h"
@@ -26,8 +29,8 @@ const char* session_mode_name(SessionMode m) {
 namespace {
 
 constexpr int kRejectTries = 6;             // paper appendix D: resample an overlapping new agent at most 6 times
-constexpr double kMaxCoordinate = 1e7;      // metres: beyond any real map
 constexpr double kMaxStepDistance = 50.0;   // metres in one 0.5 s step (100 m/s): more is a teleport (StateForce)
+constexpr double kMaxSpeed = 100.0;         // m/s
 constexpr int kCentreToken = kMotionBins / 2 * kMotionBins + kMotionBins / 2;  // zero acceleration, zero yaw rate
 
 StepState state_from_kin(const KinematicState& k, const StepState& box) {
@@ -345,27 +348,89 @@ absl::Status Session::check_state(const StepState& s, const std::string& what) c
   if (s.length <= 0 || s.width <= 0 || s.height <= 0 || s.length > 30 || s.width > 10 || s.height > 10)
     return absl::InvalidArgumentError(absl::StrCat(what, " has an implausible box ", s.length, " x ", s.width, " x ",
                                                    s.height, " m"));
-  if (std::hypot(s.vx, s.vy) > 100) return absl::InvalidArgumentError(absl::StrCat(what, " moves faster than 100 m/s"));
+  if (std::abs(s.heading) > kMaxHeading)
+    return absl::InvalidArgumentError(absl::StrCat(what, " has a heading of ", s.heading, " rad, beyond +-", kMaxHeading));
+  if (std::hypot(s.vx, s.vy) > kMaxSpeed)
+    return absl::InvalidArgumentError(absl::StrCat(what, " moves faster than ", kMaxSpeed, " m/s"));
   return absl::OkStatus();
 }
 
-absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& controls) {
-  // Check everything first: a bad input leaves the session as it was.
-  std::map<int64_t, const ControlInput*> by_id;
+absl::Status Session::check_controls(const std::vector<ControlInput>& controls) const {
+  std::set<int64_t> seen;
   for (const ControlInput& c : controls) {
     const std::string what = absl::StrCat("control for agent ", c.agent_id);
     auto it = std::find_if(agents_.begin(), agents_.end(), [&](const Agent& a) { return a.id == c.agent_id; });
     if (it == agents_.end()) return absl::InvalidArgumentError(absl::StrCat(what, ": no such agent in the session"));
     if (!it->controlled) return absl::InvalidArgumentError(absl::StrCat(what, ": the agent is not a controlled agent"));
-    if (!by_id.emplace(c.agent_id, &c).second) return absl::InvalidArgumentError(absl::StrCat(what, ": given twice"));
+    if (!seen.insert(c.agent_id).second) return absl::InvalidArgumentError(absl::StrCat(what, ": given twice"));
     if (!std::isfinite(c.x) || !std::isfinite(c.y) || !std::isfinite(c.heading) || (c.speed && !std::isfinite(*c.speed)))
       return absl::InvalidArgumentError(absl::StrCat(what, ": pose has a non-finite value"));
+    if (std::abs(c.x) > kMaxCoordinate || std::abs(c.y) > kMaxCoordinate)
+      return absl::InvalidArgumentError(absl::StrCat(what, ": pose lies beyond ", kMaxCoordinate, " m"));
+    if (std::abs(c.heading) > kMaxHeading)
+      return absl::InvalidArgumentError(absl::StrCat(what, ": heading ", c.heading, " rad is beyond +-", kMaxHeading));
     const double jump = std::hypot(c.x - it->state.x, c.y - it->state.y);
     if (jump > kMaxStepDistance)
       return absl::InvalidArgumentError(absl::StrCat(what, ": pose is ", jump, " m from the last one; at most ",
                                                      kMaxStepDistance, " m per 0.5 s step (use StateForce to teleport)"));
-    if (c.speed && std::abs(*c.speed) > 100) return absl::InvalidArgumentError(absl::StrCat(what, ": speed above 100 m/s"));
+    if (c.speed && (*c.speed < 0 || *c.speed > kMaxSpeed))
+      return absl::InvalidArgumentError(absl::StrCat(what, ": speed ", *c.speed, " m/s is outside 0..", kMaxSpeed,
+                                                     " (a speed is along the heading)"));
   }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<StepResult> Session::tick(const std::vector<ControlInput>& controls) {
+  // The events are measured from the tick before this one (a stop line crossed, progress along the lane).
+  const bool any_controlled = std::any_of(agents_.begin(), agents_.end(), [](const Agent& a) { return a.controlled; });
+  std::optional<StepResult> before;
+  if (any_controlled) before = tick_view();
+  auto r = advance_tick(controls);
+  if (!r.ok() || !any_controlled) return r;
+  if (!event_map_) event_map_ = std::make_shared<const EventMap>(event_map_from_scenario(*scenario_));
+  r->events = tick_events(*event_map_, *before, *r);
+  return r;
+}
+
+absl::StatusOr<StepResult> Session::advance_tick(const std::vector<ControlInput>& controls) {
+  // Check everything first: a bad input leaves the session as it was.
+  if (auto st = check_controls(controls); !st.ok()) return st;
+  if (options_.tick_hz == 2) {
+    auto r = step(controls);
+    if (r.ok()) ++tick_;
+    return r;
+  }
+  std::map<int64_t, ControlInput> step_controls = step_controls_;
+  for (const ControlInput& c : controls) step_controls[c.agent_id] = c;
+  if ((tick_ + 1) % ticks_per_step() == 0) {
+    std::vector<ControlInput> at_step;
+    for (const auto& [id, c] : step_controls) at_step.push_back(c);
+    auto r = step(at_step);
+    if (!r.ok()) return r.status();
+    for (const ControlInput& c : controls) latest_pose_[c.agent_id] = c;
+    step_controls_.clear();
+    ++tick_;
+    return r;
+  }
+  for (const ControlInput& c : controls) latest_pose_[c.agent_id] = c;
+  step_controls_ = std::move(step_controls);
+  ++tick_;
+  return tick_view();
+}
+
+StepResult Session::tick_view() const {
+  const int n = ticks_per_step();
+  if (n <= 1 || tick_ % n == 0) return current();
+  std::vector<ControlInput> pushed;
+  for (const auto& [id, c] : latest_pose_) pushed.push_back(c);
+  return tick_between_steps(*this, static_cast<int>(tick_ % n), n, pushed);
+}
+
+absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& controls) {
+  // Check everything first: a bad input leaves the session as it was.
+  if (auto st = check_controls(controls); !st.ok()) return st;
+  std::map<int64_t, const ControlInput*> by_id;
+  for (const ControlInput& c : controls) by_id.emplace(c.agent_id, &c);
 
   left_.clear();
   for (Agent& a : agents_) {

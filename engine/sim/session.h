@@ -1,18 +1,20 @@
-// A simulation session: one scenario's map, its agents and lights, the decoder's KV cache and the RNG, stepped at
-// 2 Hz. Every mode of the paper is a Session option (DESIGN.md section 1). Sessions are not thread-safe: callers
+// A simulation session: one scenario's map, its agents and lights, the decoder's KV cache, the RNG and the tick
+// clock, stepped at 2 Hz and ticked at 2 or 10 Hz. Hosts reach it through engine/scenestreamer.h. Every mode of the paper is a Session option (DESIGN.md section 1). Sessions are not thread-safe: callers
 // serialise calls on one session; different sessions run in parallel (the Model and MapContext are shared read-only).
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "engine/base/rng.h"
 #include "engine/model/model.h"
 #include "engine/scenario/scenario.h"
-#include "engine/sim/rng.h"
+#include "engine/sim/session_types.h"
 #include "engine/sim/token_builders.h"
 #include "engine/tokens/light.h"
 #include "engine/tokens/motion.h"
@@ -20,69 +22,7 @@
 
 namespace ss {
 
-enum class SessionMode : int { motion = 0, full = 1, densify = 2 };
-const char* session_mode_name(SessionMode m);
-
-struct SessionOptions {
-  SessionMode mode = SessionMode::motion;
-  uint64_t seed = 0;
-  // The defaults suit the trained default model (models/MODEL_CARD.md: a sweep on val scenarios cut collision and
-  // offroad rates against 0.95 and 1.0, realism within noise of the best).
-  double top_p = 0.8;          // motion tokens (nucleus sampling)
-  double temperature = 0.7;    // every sampled token
-  int max_agents = 128;        // the cap on agents alive at once (at most the model's agent slots)
-  double roi_radius = 100.0;   // metres around the first controlled agent (else the SDC, else the scenario's focus):
-                               // agents beyond it retire, new ones spawn within
-  int window_steps = 0;        // history window W in steps; 0: the model's window (at most the model's)
-  std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
-  bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too
-  int densify_target = 0;      // densify: agents to reach at the first step
-  bool operator==(const SessionOptions&) const = default;
-};
-
-// An agent as the caller sees it.
-struct AgentView {
-  int64_t id = 0;         // public id: the track id for log agents; new ones count up from above the largest track id
-  int type = 0;           // 0 vehicle, 1 pedestrian, 2 cyclist
-  StepState state;
-  bool controlled = false;
-  bool entered = false;   // entered at this step
-};
-
-struct LightView {
-  int64_t lane = 0;       // the lane feature it controls
-  LightState state = LightState::unknown;
-  Pose stop_point;        // stop point, heading of its lane
-};
-
-struct StepResult {
-  int step = 0;                 // model step (2 Hz) since the scenario's first frame
-  double time = 0;              // seconds: step * 0.5
-  std::vector<AgentView> agents;
-  std::vector<LightView> lights;
-  std::vector<int64_t> left;    // agents retired at this step
-};
-
-// A controlled agent's pose at the next step.
-struct ControlInput {
-  int64_t agent_id = 0;
-  double x = 0, y = 0, heading = 0;
-  std::optional<double> speed;  // along the heading; derived from the displacement when absent
-};
-
-struct InjectRequest {
-  int count = 0;                  // sample this many new agents (0 when `state` is given)
-  std::optional<int> type;        // 0 vehicle, 1 pedestrian, 2 cyclist; sampled when absent
-  std::optional<Vec2> near;       // spawn within `near_radius` of this point
-  double near_radius = 20.0;
-  std::optional<int> segment;     // spawn on this map segment (index among the session's map tokens)
-  std::optional<StepState> state; // insert exactly this agent (with `type`, default vehicle)
-};
-
-struct StateForceRequest {
-  std::vector<std::pair<int64_t, StepState>> agents;     // agent id -> state at the next step (a teleport)
-  std::vector<std::pair<int64_t, LightState>> lights;    // lane id -> state at the next step
-};
+struct EventMap;
 
 class Session {
  public:
@@ -98,6 +38,20 @@ class Session {
   // Advances one 2 Hz step. `controls` gives every controlled agent's pose at the next step; a controlled agent
   // without one keeps its last control. On error the session is unchanged.
   absl::StatusOr<StepResult> step(const std::vector<ControlInput>& controls);
+  // Advances one tick of the session's clock (options.tick_hz). At 2 Hz a tick is a step. At 10 Hz the poses pushed
+  // at each tick are kept (they are part of the session's state, saved with it), the ticks between model steps show
+  // background agents along the control they sampled (tick.h), and the fifth tick is the model step, each controlled
+  // agent taking its latest pose since the last step. Every pose is checked when it arrives. On error the session is
+  // unchanged.
+  // The result carries each controlled agent's events since the previous tick (engine/sim/events.h).
+  absl::StatusOr<StepResult> tick(const std::vector<ControlInput>& controls);
+  // The map the events are measured on. Hosts share one per bundled scenario between its sessions; a session given
+  // none builds its own at its first tick with a controlled agent. Forks share their source's.
+  void set_event_map(std::shared_ptr<const EventMap> m) { event_map_ = std::move(m); }
+  const EventMap* event_map() const { return event_map_.get(); }
+  // What the current tick shows (current() at a step, else the sub-tick view with the pushed poses).
+  StepResult tick_view() const;
+  int64_t tick_index() const { return tick_; }  // ticks since the session started
   // Adds agents at the current step (the step's agent-state group and motion tokens are decoded again with them).
   // Returns the new agents' ids. On error the session is unchanged.
   absl::StatusOr<std::vector<int64_t>> inject(const InjectRequest& request);
@@ -120,6 +74,8 @@ class Session {
   // it. The other agents follow tick.h's rules (controlled agents stay at their step pose here).
   StepResult sub_tick_view(int sub_tick, int ticks_per_step) const;
   const SessionOptions& options() const { return options_; }
+  const Scenario& scenario() const { return *scenario_; }
+  const MapContext& map() const { return *map_; }
   int step_index() const { return step_; }
   size_t memory_bytes() const;
   size_t cache_tokens() const { return cache_.tokens.size(); }
@@ -185,11 +141,18 @@ class Session {
   bool sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order, int64_t* new_id);
   void sample_motions(const Mat& h);  // h: the agents' motion-token outputs, in agent order
   int allocate_slot();
+  // tick() without the events.
+  absl::StatusOr<StepResult> advance_tick(const std::vector<ControlInput>& controls);
   absl::Status check_state(const StepState& s, const std::string& what) const;
+  // The one rule for a pose from a client: a controlled agent, given once, finite, on the map's scale, at most
+  // kMaxStepDistance from the agent's pose at the last model step, speed in 0..100 m/s.
+  absl::Status check_controls(const std::vector<ControlInput>& controls) const;
+  int ticks_per_step() const { return options_.tick_hz / 2; }
 
   std::shared_ptr<const Model> model_;
   std::shared_ptr<const Scenario> scenario_;
   std::shared_ptr<const MapContext> map_;
+  std::shared_ptr<const EventMap> event_map_;  // read-only, shared
   SessionOptions options_;
   Rng rng_;
   int step_ = 0;
@@ -198,6 +161,9 @@ class Session {
   std::vector<int64_t> left_;        // retired at the current step
   std::vector<int64_t> entered_;     // entered at the current step
   int64_t next_agent_id_ = 0;
+  int64_t tick_ = 0;                                  // ticks since the session started
+  std::map<int64_t, ControlInput> latest_pose_;       // 10 Hz: each controlled agent's latest pushed pose
+  std::map<int64_t, ControlInput> step_controls_;     // 10 Hz: poses pushed since the last model step
   std::vector<std::pair<int, int>> released_slots_;  // (slot, step it was released)
   std::vector<bool> slot_used_;
   KvCache cache_;

@@ -24,6 +24,8 @@ absl::Status check_options(const SessionOptions& o, const ModelConfig& c) {
   if (o.window_steps != 0 && (o.window_steps < 2 || o.window_steps > c.window_steps))
     return absl::InvalidArgumentError(absl::StrCat("options.window_steps ", o.window_steps, " is outside 2..", c.window_steps,
                                                    " (0: the model's)"));
+  if (o.tick_hz != 2 && o.tick_hz != 10)
+    return absl::InvalidArgumentError(absl::StrCat("tick_hz ", o.tick_hz, ": only 2 or 10"));
   if (o.densify_target < 0 || o.densify_target > o.max_agents)
     return absl::InvalidArgumentError(absl::StrCat("options.densify_target ", o.densify_target, " is outside 0..max_agents"));
   return absl::OkStatus();

@@ -4,6 +4,7 @@
 // steps older), so a restored session continues exactly as the saved one would have.
 #include <cmath>
 #include <cstring>
+#include <string_view>
 #include <type_traits>
 
 #include "absl/strings/str_cat.h"
@@ -12,7 +13,8 @@
 namespace ss {
 namespace {
 
-constexpr char kMagic[8] = {'S', 'S', 'S', 'E', 'S', 'S', 'N', '1'};
+// kSessionStateMagic without its terminating NUL.
+constexpr std::string_view kMagic(kSessionStateMagic, sizeof kSessionStateMagic - 1);
 
 class Writer {
  public:
@@ -85,12 +87,8 @@ bool finite_state(const StepState& s) {
 
 // A fingerprint of the map tokens' geometry, so a save is not restored onto another map.
 uint64_t map_fingerprint(const MapContext& map) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&](double v) {
-    uint64_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    h = (h ^ bits) * 1099511628211ull;
-  };
+  uint64_t h = kFnv1aOffset;
+  auto mix = [&](double v) { h = fnv1a64_bytes(&v, sizeof v, h); };
   for (const MapSegment& s : map.segments) mix(s.pose.x), mix(s.pose.y), mix(s.pose.heading);
   return h;
 }
@@ -99,7 +97,7 @@ uint64_t map_fingerprint(const MapContext& map) {
 
 std::string Session::save() const {
   Writer w;
-  w.bytes().append(kMagic, sizeof kMagic);
+  w.bytes().append(kMagic);
   w.str(scenario_->id);
   w.pod<int64_t>(map_->size());
   w.pod(map_fingerprint(*map_));
@@ -114,6 +112,17 @@ std::string Session::save() const {
   for (int32_t id : options_.controlled_ids) w.pod(id);
   w.pod<int32_t>(options_.densify_target);
   w.pod<uint8_t>(options_.control_sdc);
+  w.pod<int32_t>(options_.tick_hz);
+  w.pod(tick_);
+  for (const auto* poses : {&latest_pose_, &step_controls_}) {
+    w.pod<uint64_t>(poses->size());
+    for (const auto& [id, c] : *poses) {
+      w.pod(c.agent_id);
+      for (double v : {c.x, c.y, c.heading}) w.pod(v);
+      w.pod<uint8_t>(c.speed.has_value());
+      w.pod(c.speed.value_or(0.0));
+    }
+  }
 
   w.pod(rng_.s);
   w.pod<int32_t>(step_);
@@ -176,11 +185,15 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   auto bad = [](const std::string& what) {
     return absl::InvalidArgumentError(absl::StrCat("session snapshot: ", what));
   };
-  if (bytes.size() < sizeof kMagic || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+  if (bytes.size() < kMagic.size() || bytes.compare(0, kMagic.size() - 1, kMagic.substr(0, kMagic.size() - 1)) != 0)
     return bad("not a session snapshot (bad magic)");
+  if (bytes[kMagic.size() - 1] != kMagic.back())
+    return absl::FailedPreconditionError(absl::StrCat("session snapshot: state format version ",
+                                                      std::string(1, bytes[kMagic.size() - 1]),
+                                                      " is not this engine's version ", std::string(1, kMagic.back())));
   const ModelConfig& c = model->config();
   Reader r(bytes);
-  char magic[sizeof kMagic];
+  char magic[kMagic.size()];
   r.pod(magic);
   auto s = std::unique_ptr<Session>(new Session());
   s->model_ = model;
@@ -208,6 +221,24 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   uint8_t control_sdc = 1;
   r.pod(control_sdc);
   o.control_sdc = control_sdc;
+  if (!r.pod(o.tick_hz) || !r.pod(s->tick_)) return bad("truncated tick clock");
+  if (o.tick_hz != 2 && o.tick_hz != 10) return bad(absl::StrCat("tick_hz ", o.tick_hz, " (only 2 or 10)"));
+  if (s->tick_ < 0) return bad("negative tick");
+  for (auto* poses : {&s->latest_pose_, &s->step_controls_}) {
+    if (!r.count(n, 41)) return bad("truncated pushed poses");
+    for (uint64_t i = 0; i < n; ++i) {
+      ControlInput c;
+      uint8_t has_speed = 0;
+      double speed = 0;
+      if (!r.pod(c.agent_id) || !r.pod(c.x) || !r.pod(c.y) || !r.pod(c.heading) || !r.pod(has_speed) ||
+          !r.pod(speed))
+        return bad("truncated pushed pose");
+      if (!std::isfinite(c.x) || !std::isfinite(c.y) || !std::isfinite(c.heading) || !std::isfinite(speed))
+        return bad(absl::StrCat("pushed pose of agent ", c.agent_id, " has a non-finite value"));
+      if (has_speed) c.speed = speed;
+      (*poses)[c.agent_id] = c;
+    }
+  }
   if (!r.ok()) return bad("truncated options");
   if (mode < 0 || mode > 2 || !(o.temperature > 0) || !(o.top_p > 0 && o.top_p <= 1) || o.max_agents < 1 ||
       o.max_agents > c.agent_slots || !(o.roi_radius > 0) || o.window_steps < 0 || o.window_steps > c.window_steps)

@@ -9,7 +9,7 @@
 #include "engine/map/spatial_index.h"
 #include "engine/model/attention.h"
 #include "engine/model/key_select.h"
-#include "engine/sim/rng.h"
+#include "engine/base/rng.h"
 #include "engine/sim/token_builders.h"
 #include "engine/tokens/fidelity.h"
 #include "engine/tokens/motion.h"

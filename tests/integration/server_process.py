@@ -78,6 +78,13 @@ class Server:
         self.log.close()
         return code
 
+    def kill(self):
+        """SIGKILL (a crash: nothing is saved), then wait."""
+        self.proc.kill()
+        self.proc.wait(timeout=30)
+        self.channel.close()
+        self.log.close()
+
     def stop(self):
         if self.proc and self.proc.poll() is None:
             self.terminate()

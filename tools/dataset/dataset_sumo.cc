@@ -13,7 +13,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "engine/dataset/rng.h"
+#include "engine/base/rng.h"
 #include "engine/io/file_io.h"
 #include "nlohmann/json.hpp"
 #include "tools/cli_args.h"

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "engine/dataset/rng.h"
+#include "engine/base/rng.h"
 #include "engine/dataset/sumo_fcd.h"
 #include "tools/dataset/job_context.h"
 

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "engine/dataset/rng.h"
+#include "engine/base/rng.h"
 #include "tools/dataset/job_context.h"
 
 namespace ss::dataset {

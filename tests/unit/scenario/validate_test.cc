@@ -44,6 +44,22 @@ TEST(Validate, NamesTheNonFiniteField) {
   EXPECT_NE(error_of(s).find("map_features[0] (id 3, lane) point 1 has a non-finite coordinate"), std::string::npos);
 }
 
+TEST(Validate, HoldsCoordinatesToTheOneRangeRule) {
+  // Once client scenarios with 1e308 positions were accepted while inject and force refused anything beyond 1e7.
+  Scenario s = small_scenario();
+  s.tracks[0].states[0].x = 1e308;
+  EXPECT_NE(error_of(s).find("tracks[0] (id 7) states[0] lies beyond 1e+07 m"), std::string::npos) << error_of(s);
+  s = small_scenario();
+  s.tracks[0].states[1].heading = 1e30f;  // a float field: finite, far beyond any angle
+  EXPECT_NE(error_of(s).find("states[1].heading 1e+30 is beyond +-1000"), std::string::npos) << error_of(s);
+  s = small_scenario();
+  s.map_features[0].points[0].y = -2e7;
+  EXPECT_NE(error_of(s).find("point 0 (0, -2e+07, 0) lies beyond 1e+07 m"), std::string::npos) << error_of(s);
+  s = small_scenario();
+  s.tracks[0].states[0].x = 9.9e6;  // far from the origin but within the rule
+  EXPECT_TRUE(validate_scenario(s, "f").ok());
+}
+
 TEST(Validate, RejectsInconsistentStructure) {
   Scenario s = small_scenario();
   s.tracks[0].states.pop_back();

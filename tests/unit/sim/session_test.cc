@@ -7,6 +7,7 @@
 #include <set>
 #include <thread>
 
+#include "engine/sim/events.h"
 #include "engine/tokens/fidelity.h"
 #include "tests/unit/sim/session_fixture.h"
 
@@ -257,7 +258,11 @@ TEST_F(SessionTest, BadControlsAreRefusedAndChangeNothing) {
   unknown.agent_id = 123456789;
   ControlInput not_controlled = c;
   not_controlled.agent_id = s->current().agents[1].id;
-  for (const ControlInput& bad : {nan, jump, unknown, not_controlled}) {
+  ControlInput huge_heading = c;
+  huge_heading.heading = 1e308;
+  ControlInput backwards = c;
+  backwards.speed = -50;
+  for (const ControlInput& bad : {nan, jump, unknown, not_controlled, huge_heading, backwards}) {
     auto r = s->step({bad});
     EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
     EXPECT_FALSE(r.status().message().empty());
@@ -308,6 +313,103 @@ TEST_F(SessionTest, SaveRestoreContinuesIdentically) {
     EXPECT_TRUE(same_rollout(a, b)) << session_mode_name(mode);
     std::printf("%s: snapshot of %zu bytes at step 26\n", session_mode_name(mode), bytes.size());
   }
+}
+
+// The 10 Hz clock is the session's: poses pushed between model steps are part of its state (saved, forked) and are
+// checked when they arrive.
+TEST_F(SessionTest, TenHzPosesPushedBetweenStepsSurviveSaveAndRestore) {
+  SessionOptions o;
+  o.tick_hz = 10;
+  o.seed = 4;
+  auto s = start(w(), o);
+  const int64_t sdc = w().scenario->tracks[w().scenario->sdc_track_index].id;
+  auto pose_at = [&](const Session& session, int k) {
+    const StepResult v = session.tick_view();
+    for (const AgentView& a : v.agents)
+      if (a.id == sdc) return ControlInput{sdc, a.state.x + 0.1 * a.state.vx + 0.05 * k, a.state.y + 0.1 * a.state.vy,
+                                           a.state.heading + 0.01, std::nullopt};
+    return ControlInput{};
+  };
+  for (int k = 0; k < 7; ++k) ASSERT_TRUE(s->tick({pose_at(*s, k)}).ok());
+  EXPECT_EQ(s->tick_index(), 7);
+  EXPECT_EQ(s->step_index(), w().scenario->current_time_index / 5 + 1);
+  auto restored = Session::restore(w().model, w().scenario, w().map, s->save());
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  EXPECT_EQ((*restored)->tick_index(), 7);
+  EXPECT_TRUE(same_result(s->tick_view(), (*restored)->tick_view()));
+  for (int k = 7; k < 13; ++k) {
+    auto a = s->tick({pose_at(*s, k)});
+    auto b = (*restored)->tick({pose_at(**restored, k)});
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_TRUE(same_result(*a, *b)) << "tick " << k + 1;
+  }
+}
+
+// The tick reports each controlled agent's events, measured from the tick before it by events.h's rules, at 2 and
+// 10 Hz; views carry none, a fork shares its source's event map, and a session without controlled agents has none.
+TEST_F(SessionTest, TicksCarryTheControlledAgentsEvents) {
+  const EventMap m = event_map_from_scenario(*w().scenario);
+  const int64_t sdc = w().scenario->tracks[w().scenario->sdc_track_index].id;
+  auto same = [](const AgentEvents& a, const AgentEvents& b) {
+    const bool same_edge = a.road_edge_distance == b.road_edge_distance ||
+                           (std::isnan(a.road_edge_distance) && std::isnan(b.road_edge_distance));
+    return a.agent_id == b.agent_id && a.overlapping == b.overlapping && same_edge && a.off_road == b.off_road &&
+           a.ran_red_light == b.ran_red_light && a.red_light_lane == b.red_light_lane &&
+           a.lane.lane_id == b.lane.lane_id && a.lane.s == b.lane.s && a.lane.offset == b.lane.offset &&
+           a.progress == b.progress;
+  };
+  for (int hz : {2, 10}) {
+    SessionOptions o;
+    o.tick_hz = hz;
+    auto s = start(w(), o);
+    double progress = 0;
+    for (int k = 0; k < 6; ++k) {
+      const StepResult before = s->tick_view();
+      auto r = s->tick({sdc_control(w(), s->step_index() + 1)});  // the SDC along its log
+      ASSERT_TRUE(r.ok()) << r.status();
+      const std::vector<AgentEvents> expected = tick_events(m, before, *r);
+      ASSERT_EQ(r->events.size(), 1u) << hz << " Hz, tick " << k + 1;
+      EXPECT_EQ(r->events[0].agent_id, sdc);
+      EXPECT_TRUE(same(r->events[0], expected[0])) << hz << " Hz, tick " << k + 1;
+      progress += r->events[0].progress;
+    }
+    EXPECT_GT(progress, 0) << hz << " Hz: the SDC follows its log along its lane";
+    EXPECT_TRUE(s->tick_view().events.empty());
+    EXPECT_TRUE(s->current().events.empty());
+    auto copy = s->fork();
+    EXPECT_EQ(copy->event_map(), s->event_map());
+  }
+  SessionOptions none;
+  none.control_sdc = false;
+  auto s = start(w(), none);
+  auto r = s->tick({});
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_TRUE(r->events.empty());
+  EXPECT_EQ(s->event_map(), nullptr);  // not built when no agent is controlled
+}
+
+TEST_F(SessionTest, TenHzPosesAreCheckedWhenTheyArrive) {
+  SessionOptions o;
+  o.tick_hz = 10;
+  auto s = start(w(), o);
+  ControlInput far = sdc_control(w(), 2);
+  far.x += 5000;  // once accepted between model steps, shown, then failing the step two ticks later
+  const std::string before = s->save();
+  auto r = s->tick({far});
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("from the last one"), std::string::npos) << r.status();
+  EXPECT_EQ(s->save(), before);
+  for (int k = 0; k < 5; ++k) EXPECT_TRUE(s->tick({}).ok());  // the model step at the fifth tick included
+  EXPECT_EQ(s->tick_index(), 5);
+}
+
+TEST_F(SessionTest, AnOlderStateFormatIsRefusedNamingBothVersions) {
+  auto s = start(w(), {});
+  std::string bytes = s->save();
+  bytes[7] = '1';
+  auto r = Session::restore(w().model, w().scenario, w().map, bytes);
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_NE(r.status().message().find("version 1 is not this engine's version 2"), std::string::npos) << r.status();
 }
 
 TEST_F(SessionTest, RestoreRefusesCorruptBytes) {

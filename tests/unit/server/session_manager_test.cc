@@ -1,0 +1,150 @@
+// The session manager against the real engine on a tiny configuration (small random weights, the real WOMD
+// TFRecords read in place from ../shared): caps, LRU eviction order, the multi-client barrier, ids, status mapping.
+#include "server/session_manager.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <thread>
+
+#include "server/convert.h"
+#include "server/session_id.h"
+
+namespace ss::server {
+namespace {
+
+class ManagerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    EngineOptions eo;
+    eo.random_config = "small";
+    eo.scenario_paths = {SS_DATA_DIR "/womd/tfrecord"};
+    auto e = engine_create(eo);
+    ASSERT_TRUE(e.ok()) << e.status();
+    engine_ = e->release();
+    name_ = new std::string(engine_scenarios(*engine_).front().name);
+  }
+  static void TearDownTestSuite() {
+    EngineDeleter()(engine_);
+    delete name_;
+  }
+  static Clock::time_point soon() { return Clock::now() + std::chrono::seconds(120); }
+  absl::StatusOr<std::string> create(SessionManager& m, const std::string& id, SessionOptions o = {}) {
+    std::string out;
+    auto t = m.create({*name_, ""}, o, 0, id, soon(), &out);
+    if (!t.ok()) return t.status();
+    return out;
+  }
+  static Engine* engine_;
+  static std::string* name_;
+  Metrics metrics_;
+};
+Engine* ManagerTest::engine_ = nullptr;
+std::string* ManagerTest::name_ = nullptr;
+
+TEST_F(ManagerTest, TheSessionCapHoldsWithAClearError) {
+  ManagerOptions o;
+  o.max_sessions = 2;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  ASSERT_TRUE(create(m, "a").ok());
+  ASSERT_TRUE(create(m, "b").ok());
+  auto c = create(m, "c");
+  EXPECT_EQ(c.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_NE(c.status().message().find("--max_sessions=2"), std::string::npos) << c.status();
+  EXPECT_EQ(m.count(), 2);
+  auto f = m.fork("a", "", soon());
+  EXPECT_EQ(f.status().code(), absl::StatusCode::kResourceExhausted);
+}
+
+TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
+  const auto dir = std::filesystem::temp_directory_path() / "ss-manager-test-snapshots";
+  std::filesystem::remove_all(dir);
+  ManagerOptions o;
+  o.max_sessions = 2;
+  o.evict_idle_s = 0;
+  o.snapshot_dir = dir.string();
+  o.snapshot_interval_s = 0;
+  SessionManager m(*engine_, o, metrics_);
+  ASSERT_TRUE(create(m, "old").ok());
+  ASSERT_TRUE(create(m, "recent").ok());
+  ASSERT_TRUE(m.step("old", {}, 1, soon()).ok());  // "old" is now the more recently used
+  ASSERT_TRUE(create(m, "new").ok());
+  std::vector<std::string> held;
+  for (const SessionInfo& i : m.list()) held.push_back(i.id);
+  EXPECT_EQ(held, (std::vector<std::string>{"new", "old"}));
+  EXPECT_TRUE(std::filesystem::exists(dir / "recent.snapshot"));
+  // The evicted session comes back on its next call, at the tick it was saved at.
+  auto got = m.get("recent");
+  ASSERT_TRUE(got.ok()) << got.status();
+  EXPECT_EQ(got->second.tick, 0);
+  ASSERT_TRUE(m.close("recent").ok());
+  EXPECT_FALSE(std::filesystem::exists(dir / "recent.snapshot"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTick) {
+  ManagerOptions o;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  std::string id;
+  auto first = m.create({*name_, ""}, {}, 0, "", soon(), &id);
+  ASSERT_TRUE(first.ok());
+  std::vector<int64_t> ids;
+  for (const AgentView& a : first->view.agents)
+    if (a.type == 0 && ids.size() < 2) ids.push_back(a.id);
+  SessionOptions so;
+  for (int64_t a : ids) so.controlled_ids.push_back(static_cast<int32_t>(a));
+  std::string multi;
+  auto t0 = m.create({*name_, ""}, so, 60000, "", soon(), &multi);
+  ASSERT_TRUE(t0.ok()) << t0.status();
+  std::vector<absl::StatusOr<std::vector<TickView>>> got(2, absl::UnknownError("not run"));
+  std::vector<std::thread> clients;
+  for (int k = 0; k < 2; ++k)
+    clients.emplace_back([&, k] {
+      for (const AgentView& a : t0->view.agents)
+        if (a.id == ids[k]) {
+          ControlInput c{a.id, a.state.x + 0.5 * a.state.vx, a.state.y + 0.5 * a.state.vy, a.state.heading, {}};
+          if (k == 1) std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the late one
+          got[k] = m.step(multi, {c}, 1, soon());
+        }
+    });
+  for (auto& c : clients) c.join();
+  ASSERT_TRUE(got[0].ok()) << got[0].status();
+  ASSERT_TRUE(got[1].ok()) << got[1].status();
+  ASSERT_EQ(got[0]->size(), 1u);
+  EXPECT_EQ((*got[0])[0].tick, 1);
+  EXPECT_EQ((*got[1])[0].tick, 1);
+  EXPECT_EQ((*got[0])[0].view.step, (*got[1])[0].view.step);
+  // A pose for an agent the session does not control is the wire's mistake: INVALID_ARGUMENT naming it.
+  auto bad = m.step(multi, {ControlInput{123456789, 0, 0, 0, {}}}, 1, soon());
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("123456789"), std::string::npos);
+}
+
+TEST(SessionId, TheRuleAndShortEchoes) {
+  EXPECT_TRUE(check_session_id("a-b_c.9").ok());
+  EXPECT_EQ(check_session_id("").code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(check_session_id("../escaped").code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(check_session_id(".hidden").code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(check_session_id(std::string(129, 'a')).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(random_session_id().size(), 32u);
+  EXPECT_NE(random_session_id(), random_session_id());
+  const std::string echo = echo_id(std::string(8000, 'x'));
+  EXPECT_LT(echo.size(), 100u);
+  EXPECT_NE(echo.find("8000 bytes"), std::string::npos);
+}
+
+TEST(StatusMapping, EveryEngineCodeKeepsItsGrpcCodeAndMessage) {
+  for (auto code : {absl::StatusCode::kInvalidArgument, absl::StatusCode::kNotFound, absl::StatusCode::kFailedPrecondition,
+                    absl::StatusCode::kResourceExhausted, absl::StatusCode::kUnavailable, absl::StatusCode::kAborted,
+                    absl::StatusCode::kDeadlineExceeded, absl::StatusCode::kDataLoss, absl::StatusCode::kAlreadyExists}) {
+    const ::grpc::Status g = to_grpc(absl::Status(code, "what went wrong"));
+    EXPECT_EQ(static_cast<int>(g.error_code()), static_cast<int>(code));
+    EXPECT_EQ(g.error_message(), "what went wrong");
+  }
+  EXPECT_TRUE(to_grpc(absl::OkStatus()).ok());
+}
+
+}  // namespace
+}  // namespace ss::server
