@@ -239,18 +239,23 @@ TEST(Submission, MetadataJsonIsStrict) {
 }
 
 // A model rollout as a complete WOMD scenario: the log up to the current frame, the rollout after it.
-TEST(RolloutExport, KeepsTheLogUpToTheCurrentFrame) {
-  const auto s = load("/womd/tfrecord/motion_data_one_scenario.tfrecord");
+// A densify rollout (it creates agents) of the real test scenario, `steps` steps from its current one.
+absl::StatusOr<std::vector<StepResult>> densify_rollout(const std::shared_ptr<const Scenario>& s, int steps) {
   auto model = Model::create(init_weights(*model_config_by_name("small"), 5));
-  ASSERT_TRUE(model.ok());
+  if (!model.ok()) return model.status();
   MapCache maps(*model);
   auto map = maps.get(*s);
-  ASSERT_TRUE(map.ok());
+  if (!map.ok()) return map.status();
   SessionOptions o;
-  o.mode = SessionMode::densify;  // creates agents: their tracks must not collide with the log's
+  o.mode = SessionMode::densify;
   o.densify_target = 60;
   o.seed = 3;
-  auto steps = run_model_rollout(*model, s, *map, o, SdcRule::model, 4);
+  return run_model_rollout(*model, s, *map, o, SdcRule::model, steps);
+}
+
+TEST(RolloutExport, KeepsTheLogUpToTheCurrentFrame) {
+  const auto s = load("/womd/tfrecord/motion_data_one_scenario.tfrecord");
+  auto steps = densify_rollout(s, 4);  // creates agents: their tracks must not collide with the log's
   ASSERT_TRUE(steps.ok()) << steps.status();
   auto out = rollout_to_scenario(*s, *steps);
   ASSERT_TRUE(out.ok()) << out.status();
@@ -302,16 +307,7 @@ TEST(RolloutExport, KeepsTheLogUpToTheCurrentFrame) {
 
 TEST(RolloutExport, AgentGoneAfterTheCurrentStepGetsNoTrack) {
   const auto s = load("/womd/tfrecord/motion_data_one_scenario.tfrecord");
-  auto model = Model::create(init_weights(*model_config_by_name("small"), 5));
-  ASSERT_TRUE(model.ok());
-  MapCache maps(*model);
-  auto map = maps.get(*s);
-  ASSERT_TRUE(map.ok());
-  SessionOptions o;
-  o.mode = SessionMode::densify;
-  o.densify_target = 60;
-  o.seed = 3;
-  auto steps = run_model_rollout(*model, s, *map, o, SdcRule::model, 2);
+  auto steps = densify_rollout(s, 2);
   ASSERT_TRUE(steps.ok()) << steps.status();
   // A generated agent (an id the log does not use) that retires right after the current step: its only state is
   // at the current frame, which is the log's, so it has nothing to show.
