@@ -11,14 +11,15 @@
 
 namespace ss {
 
-absl::StatusOr<BenchWorld> make_bench_world(const std::string& scenario_path, const std::string& model, int lights) {
+absl::StatusOr<BenchWorld> make_bench_world(const std::string& scenario_path, const std::string& model, int lights,
+                                            ModelOptions options) {
   BenchWorld w;
   absl::StatusOr<Weights> weights = [&]() -> absl::StatusOr<Weights> {
     if (model == "small" || model == "large") return init_weights(*model_config_by_name(model), 1);
     return load_weights(model);
   }();
   if (!weights.ok()) return weights.status();
-  auto m = Model::create(std::move(*weights));
+  auto m = Model::create(std::move(*weights), options);
   if (!m.ok()) return m.status();
   w.model = *m;
 

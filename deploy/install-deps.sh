@@ -2,23 +2,47 @@
 # Installs every Debian package the project needs: the one list (the Makefile and the Dockerfile both call this).
 # Idempotent: packages already installed are not fetched again, and `apt-get update` runs at most once per call,
 # only when something is missing. Runs as root, or through sudo otherwise.
+#   deploy/install-deps.sh           everything: build, tests, tools, trainer (what `make` uses)
+#   deploy/install-deps.sh build     what compiling the server and its clients needs (the image's build stage)
+#   deploy/install-deps.sh runtime   the shared libraries the server and its probe load (the image's final stage)
+#   deploy/install-deps.sh image     what `make image` needs on the host (buildah, debootstrap)
 set -eu
 
-PACKAGES="
-  build-essential cmake ninja-build pkg-config git
-  clang libclang-rt-14-dev
+# The server's and the health probe's run-time libraries (their other dependencies come with these).
+RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10"
+# CMake configures the whole tree (tests and benchmarks too), so their headers are part of a build.
+BUILD="
+  build-essential cmake ninja-build pkg-config
   protobuf-compiler libprotobuf-dev
   libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libssl-dev openssl
   libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+"
+ALL="$BUILD
+  git
+  clang libclang-rt-14-dev
   python3-grpcio python3-protobuf
+  python3-numpy python3-setuptools python3-wheel python3-venv
   sumo sumo-tools
   librsvg2-bin
-  nginx
+  nginx haproxy yamllint python3-yaml
   libtorch-dev libopenblas0-openmp
+  python3-torch
 "
+# python3-numpy, -setuptools, -wheel and -venv: the Python package (python/), its build and its install test.
 # libtorch-dev and libopenblas0-openmp join this list with the trainer (training/), which is the only part that needs
-# them: they pull in ~330 shared libraries.
+# them: they pull in ~330 shared libraries. python3-torch (on top of libtorch): the PPO example
+# (client_examples/python/ppo.py) and its test. nginx and haproxy are the session-affine routers (deploy/router/), run by
+# the cluster test; yamllint checks deploy/k8s/.
+IMAGE="buildah debootstrap"
+
+case "${1:-all}" in
+  all) PACKAGES="$ALL" ;;
+  build) PACKAGES="$BUILD" ;;
+  runtime) PACKAGES="$RUNTIME" ;;
+  image) PACKAGES="$IMAGE" ;;
+  *) echo "install-deps: unknown set '$1' (all, build, runtime, image)" >&2; exit 2 ;;
+esac
 
 missing=""
 for p in $PACKAGES; do

@@ -1,12 +1,14 @@
 #include "engine/scenestreamer.h"
 
 #include <map>
+#include <mutex>
 
 #include "absl/strings/str_cat.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
 #include "engine/scenario/womd_proto.h"
+#include "engine/sim/events.h"
 #include "engine/sim/map_cache.h"
 #include "engine/sim/session.h"
 
@@ -20,6 +22,9 @@ class Engine {
   bool random_weights = false;
   std::vector<EngineScenario> listing;
   std::map<std::string, std::shared_ptr<const Scenario>> scenarios;
+  // The event maps of bundled scenarios, built at their first session and shared by all of them.
+  std::mutex event_maps_mu;
+  std::map<const Scenario*, std::shared_ptr<const EventMap>> event_maps;
 };
 
 namespace {
@@ -55,6 +60,20 @@ absl::StatusOr<std::shared_ptr<const Scenario>> resolve(Engine& e, const Session
   if (!s.ok()) return absl::InvalidArgumentError(s.status().message());
   if (auto st = check_limits(e, *s, "womd_bytes"); !st.ok()) return st;
   return std::make_shared<const Scenario>(std::move(*s));
+}
+
+bool bundled(const Engine& e, const Scenario& s) {
+  auto it = e.scenarios.find(s.id);
+  return it != e.scenarios.end() && it->second.get() == &s;
+}
+
+// The map a session's events are measured on: a bundled scenario's is shared, a client-sent one's is its own.
+std::shared_ptr<const EventMap> event_map_for(Engine& e, const Scenario& s) {
+  if (!bundled(e, s)) return std::make_shared<const EventMap>(event_map_from_scenario(s));
+  std::lock_guard<std::mutex> l(e.event_maps_mu);
+  auto& m = e.event_maps[&s];
+  if (!m) m = std::make_shared<const EventMap>(event_map_from_scenario(s));
+  return m;
 }
 
 }  // namespace
@@ -107,6 +126,7 @@ absl::StatusOr<SessionPtr> session_create(Engine& engine, const SessionSource& s
   if (!map.ok()) return map.status();
   auto s = Session::create(engine.model, *scenario, *map, options);
   if (!s.ok()) return s.status();
+  (*s)->set_event_map(event_map_for(engine, **scenario));
   return SessionPtr(s->release());
 }
 
@@ -117,6 +137,7 @@ absl::StatusOr<SessionPtr> session_restore(Engine& engine, const SessionSource& 
   if (!map.ok()) return map.status();
   auto s = Session::restore(engine.model, *scenario, *map, state);
   if (!s.ok()) return s.status();
+  (*s)->set_event_map(event_map_for(engine, **scenario));
   return SessionPtr(s->release());
 }
 
@@ -131,14 +152,17 @@ absl::StatusOr<std::vector<int64_t>> session_inject(Session& session, const Inje
 }
 absl::Status session_force(Session& session, const StateForceRequest& request) { return session.state_force(request); }
 const SessionOptions& session_options(const Session& session) { return session.options(); }
+const std::vector<MapFeature>& session_map_features(const Session& session) {
+  return session.scenario().map_features;
+}
 std::string session_save(const Session& session) { return session.save(); }
 
 uint64_t session_memory_bytes(const Engine& engine, const Session& session) {
   uint64_t b = session.memory_bytes();
   const Scenario& s = session.scenario();
-  auto bundled = engine.scenarios.find(s.id);
-  if (bundled != engine.scenarios.end() && bundled->second.get() == &s) return b;
-  // A client-sent scenario: its parsed form and its map encoding are this session's alone.
+  if (bundled(engine, s)) return b;
+  // A client-sent scenario: its parsed form, its map encoding and its event map are this session's alone.
+  if (session.event_map()) b += session.event_map()->bytes();
   b += sizeof(Scenario) + s.timestamps.capacity() * sizeof(double) + s.signals.capacity() * 64;
   for (const Track& t : s.tracks) b += sizeof(Track) + t.states.capacity() * sizeof(ObjectState);
   for (const MapFeature& m : s.map_features) b += sizeof(MapFeature) + m.points.capacity() * sizeof(MapPoint);

@@ -72,7 +72,8 @@ absl::StatusOr<SessionPtr> session_create(Engine& engine, const SessionSource& s
 // A full copy (cache, RNG, tick clock and pushed poses included): both continue identically with the same inputs.
 SessionPtr session_fork(const Session& session);
 // One tick of the session's clock (options.tick_hz): `controls` are the controlled agents' poses at the new tick,
-// checked when they arrive (INVALID_ARGUMENT naming the agent). On error the session is unchanged.
+// checked when they arrive (INVALID_ARGUMENT naming the agent). On error the session is unchanged. The result's
+// `events` are each controlled agent's events since the previous tick (overlaps, off road, red light, lane).
 absl::StatusOr<StepResult> session_tick(Session& session, const std::vector<ControlInput>& controls);
 // What the current tick shows, and its index (ticks since the session started).
 StepResult session_view(const Session& session);
@@ -80,6 +81,8 @@ int64_t session_tick_index(const Session& session);
 absl::StatusOr<std::vector<int64_t>> session_inject(Session& session, const InjectRequest& request);
 absl::Status session_force(Session& session, const StateForceRequest& request);
 const SessionOptions& session_options(const Session& session);
+// The session's map as its scenario gives it (ids, kinds, polylines, lane links), for hosts that send it to clients.
+const std::vector<MapFeature>& session_map_features(const Session& session);
 // Bytes the session holds: its state and cache, plus a client-sent scenario's parsed form and map encoding, which
 // no other session shares.
 uint64_t session_memory_bytes(const Engine& engine, const Session& session);

@@ -160,11 +160,43 @@ void tick_to_proto(const StepResult& s, int64_t tick, pb::Tick* out) {
     o->set_entered(a.entered);
   }
   for (int64_t id : s.left) out->add_left(id);
+  for (const AgentEvents& e : s.events) {
+    pb::AgentEvents* o = out->add_events();
+    o->set_agent_id(e.agent_id);
+    for (int64_t id : e.overlapping) o->add_overlapping(id);
+    o->set_off_road(e.off_road);
+    o->set_road_edge_distance(e.road_edge_distance);
+    o->set_ran_red_light(e.ran_red_light);
+    o->set_red_light_lane(e.red_light_lane);
+    o->set_lane_id(e.lane.lane_id);
+    o->set_lane_s(e.lane.s);
+    o->set_lane_offset(e.lane.offset);
+    o->set_lane_heading_error(e.lane.heading_error);
+    o->set_progress(e.progress);
+  }
 }
 
 ::grpc::Status to_grpc(const absl::Status& st) {
   if (st.ok()) return ::grpc::Status::OK;
   return ::grpc::Status(static_cast<::grpc::StatusCode>(static_cast<int>(st.code())), std::string(st.message()));
+}
+
+void map_to_proto(const std::vector<MapFeature>& map, pb::CreateSessionResponse* out) {
+  for (const MapFeature& f : map) {
+    pb::MapFeature* o = out->add_map();
+    o->set_id(f.id);
+    // MapFeatureType lists the kinds in MapFeatureKind's order.
+    o->set_type(static_cast<pb::MapFeatureType>(static_cast<int>(f.kind)));
+    o->set_subtype(f.subtype);
+    for (const MapPoint& p : f.points) {
+      o->add_x(p.x);
+      o->add_y(p.y);
+    }
+    if (f.kind != MapFeatureKind::lane) continue;
+    for (int64_t id : f.lane.entry_lanes) o->add_entry_lanes(id);
+    for (int64_t id : f.lane.exit_lanes) o->add_exit_lanes(id);
+    o->set_speed_limit_mph(f.lane.speed_limit_mph);
+  }
 }
 
 }  // namespace ss::server

@@ -18,7 +18,9 @@ absl::StatusOr<std::vector<ControlInput>> controls_from_proto(const pb::StepScen
 absl::StatusOr<InjectRequest> inject_from_proto(const pb::InjectAgentRequest& r);
 absl::StatusOr<StateForceRequest> force_from_proto(const pb::StateForceRequest& r);
 
+// A tick's agents, lights and (for a tick a call made) its controlled agents' events.
 void tick_to_proto(const StepResult& s, int64_t tick, pb::Tick* out);
+void map_to_proto(const std::vector<MapFeature>& map, pb::CreateSessionResponse* out);
 // The one conversion of an engine or manager status to the gRPC status a handler returns (the codes are the same
 // numbers; the message is kept).
 ::grpc::Status to_grpc(const absl::Status& st);

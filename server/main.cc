@@ -43,7 +43,9 @@ ABSL_FLAG(double, call_deadline_s, 120, "Deadline of a call whose client set non
 ABSL_FLAG(int, max_message_mb, 64, "Largest request or response, MiB (also the largest client-sent scenario)");
 ABSL_FLAG(int, max_scenario_tracks, 1024, "Largest number of tracks in a scenario");
 ABSL_FLAG(int, max_map_features, 20000, "Largest number of map features in a scenario");
-ABSL_FLAG(int, metrics_port, 9464, "Prometheus text metrics on 127.0.0.1:PORT (-1: off, 0: a free port)");
+ABSL_FLAG(int, metrics_port, 9464, "Prometheus text metrics on METRICS_HOST:PORT (-1: off, 0: a free port)");
+ABSL_FLAG(std::string, metrics_host, "127.0.0.1",
+          "Address of the metrics port (containers set 0.0.0.0 so the cluster's Prometheus can scrape it)");
 ABSL_FLAG(double, drain_grace_s, 1.0,
           "On SIGTERM, keep answering at least this long (health NOT_SERVING, new calls UNAVAILABLE) so clients and "
           "load balancers see the drain rather than a closed connection");
@@ -138,9 +140,10 @@ int main(int argc, char** argv) {
   }
 
   if (absl::GetFlag(FLAGS_metrics_port) >= 0) {
-    auto metrics_port = metrics.serve("127.0.0.1", absl::GetFlag(FLAGS_metrics_port));
+    const std::string host = absl::GetFlag(FLAGS_metrics_host);
+    auto metrics_port = metrics.serve(host, absl::GetFlag(FLAGS_metrics_port));
     if (metrics_port.ok())
-      spdlog::info("metrics on http://127.0.0.1:{}/metrics", *metrics_port);
+      spdlog::info("metrics on http://{}:{}/metrics", host, *metrics_port);
     else
       spdlog::warn("metrics off: {}", std::string(metrics_port.status().message()));
   }

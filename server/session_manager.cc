@@ -37,7 +37,7 @@ struct ManagedSession {
   std::mutex mu;
   std::condition_variable cv;
   int64_t tick = 0;
-  StepResult view;
+  StepResult view;                               // the current tick as GetSession shows it (no events)
   std::set<int64_t> controllers;                 // controlled agents alive: each may have its own client
   std::map<int64_t, std::string> controller_of;  // agent -> its controller's credential (JoinSession)
   std::map<int64_t, ControlInput> pending;       // poses for tick + 1
@@ -56,6 +56,7 @@ struct ManagedSession {
   // Holds mu.
   void publish(const StepResult& v) {
     view = v;
+    view.events.clear();  // events belong to the tick a call made (StepScene, watchers), not to the current view
     controllers.clear();
     for (const AgentView& a : v.agents)
       if (a.controlled) controllers.insert(a.id);
@@ -181,7 +182,7 @@ absl::Status SessionManager::make_room_locked(uint64_t extra_bytes, int extra_se
 absl::StatusOr<TickView> SessionManager::create(const std::string& tenant, const SessionSource& source,
                                                 const SessionOptions& options, int tick_deadline_ms,
                                                 const std::string& proposed_id, Clock::time_point deadline,
-                                                std::string* id_out) {
+                                                std::string* id_out, std::vector<MapFeature>* map) {
   if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");
   if (tick_deadline_ms < 0) return absl::InvalidArgumentError("tick_deadline_ms must not be negative");
   std::string id;
@@ -212,6 +213,8 @@ absl::StatusOr<TickView> SessionManager::create(const std::string& tenant, const
     s->publish(session_view(*s->session));
     out = s->recent.back();
   }
+  // Copied before the session is listed: from then on another call may close it.
+  if (map) *map = session_map_features(*s->session);
   {
     std::lock_guard<std::mutex> l(mu_);
     if (draining_) return absl::UnavailableError("the server is draining (shutting down): no new sessions");

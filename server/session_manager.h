@@ -86,9 +86,11 @@ class SessionManager {
   SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics);
   ~SessionManager();
 
+  // A new session for `tenant`; its id in `id`, and its scenario's map features in `map` when given (CreateSession's
+  // include_map).
   absl::StatusOr<TickView> create(const std::string& tenant, const SessionSource& source,
                                   const SessionOptions& options, int tick_deadline_ms, const std::string& proposed_id,
-                                  Clock::time_point deadline, std::string* id);
+                                  Clock::time_point deadline, std::string* id, std::vector<MapFeature>* map = nullptr);
   // One call's ticks. In a multi-client session the caller waits for the other controllers (or the tick deadline).
   // `credential`: JoinSession's, for agents with a controller (PERMISSION_DENIED for their poses without it).
   absl::StatusOr<std::vector<TickView>> step(const std::string& id, const std::string& tenant,

@@ -6,6 +6,7 @@
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
+#include "server/session_id.h"
 #include "spdlog/spdlog.h"
 
 namespace ss::server {
@@ -27,6 +28,17 @@ void info_to_proto(const SessionInfo& i, pb::SessionInfo* o) {
   o->set_idle_seconds(i.idle_seconds);
   o->set_roi_radius(i.options.roi_radius);
   o->set_max_agents(i.options.max_agents);
+}
+
+// A router hashes the x-session-id metadata before the session exists, so the id it routed by is the session's: it
+// stands in for an empty session_id, and one that differs from session_id would strand the session.
+absl::StatusOr<std::string> proposed_session_id(const ::grpc::ServerContext& ctx, const std::string& field) {
+  const auto m = ctx.client_metadata().find("x-session-id");
+  if (m == ctx.client_metadata().end()) return field;
+  const std::string routed(m->second.data(), m->second.size());
+  if (field.empty() || routed == field) return routed;
+  return absl::InvalidArgumentError(absl::StrCat("session_id ", echo_id(field), " differs from the x-session-id metadata ",
+                                                 echo_id(routed), " the call was routed by"));
 }
 
 }  // namespace
@@ -67,11 +79,16 @@ Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
   if (source.scenario_name.empty() && source.womd_bytes.empty())
     return finish("CreateSession", r->session_id(),
                   absl::InvalidArgumentError("scenario: scenario_name or womd_scenario is empty"));
+  auto proposed = proposed_session_id(*ctx, r->session_id());
+  if (!proposed.ok()) return finish("CreateSession", r->session_id(), proposed.status());
   std::string id;
-  auto t = sessions_.create(*tenant, source, *options, r->tick_deadline_ms(), r->session_id(), deadline(ctx), &id);
-  if (!t.ok()) return finish("CreateSession", r->session_id(), t.status());
+  std::vector<MapFeature> map;
+  auto t = sessions_.create(*tenant, source, *options, r->tick_deadline_ms(), *proposed, deadline(ctx), &id,
+                            r->include_map() ? &map : nullptr);
+  if (!t.ok()) return finish("CreateSession", *proposed, t.status());
   out->set_session_id(id);
   tick_to_proto(t->view, t->tick, out->mutable_initial());
+  map_to_proto(map, out);
   return finish("CreateSession", id, absl::OkStatus());
 }
 

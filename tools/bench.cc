@@ -1,4 +1,4 @@
-// scenestreamer bench [--json] [--model W] [--scenario FILE] [--long-steps N]
+// scenestreamer bench [--json] [--model W] [--scenario FILE] [--long-steps N] [--kv-precision fp32|fp16]
 // The engine's speed and memory figures, measured in one run: step latency by agent count, the incremental decoder
 // against a full recompute at step 19, session memory after a long rollout, KV bytes per token.
 #include <algorithm>
@@ -48,11 +48,12 @@ int fail(const absl::Status& st) {
 }  // namespace
 
 int bench_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1, {"model", "scenario", "long-steps", "steps"}, {"json", "help"});
+  auto args = parse_args(argc, argv, 1, {"model", "scenario", "long-steps", "steps", "kv-precision"}, {"json", "help"});
   if (!args.ok() || args->has("help") || !args->positional.empty()) {
     if (!args.ok()) std::fprintf(stderr, "bench: %s\n", std::string(args.status().message()).c_str());
     std::fputs("usage: scenestreamer bench [--json] [--model large|small|WEIGHTS] [--scenario FILE]\n"
-               "                           [--steps N (timed per agent count, default 30)] [--long-steps N (default 1000)]\n",
+               "                           [--steps N (timed per agent count, default 30)] [--long-steps N (default 1000)]\n"
+               "                           [--kv-precision fp32|fp16 (default: $SCENESTREAMER_KV_PRECISION, else fp32)]\n",
                args.ok() && args->has("help") ? stdout : stderr);
     return args.ok() && args->has("help") ? 0 : 2;
   }
@@ -64,13 +65,23 @@ int bench_main(int argc, char** argv) {
       return 2;
     }
   }
+  ModelOptions options;
+  if (args->has("kv-precision")) {
+    auto p = kv_precision_by_name(args->get("kv-precision"));
+    if (!p.ok()) {
+      std::fprintf(stderr, "bench: --kv-precision: %s\n", std::string(p.status().message()).c_str());
+      return 2;
+    }
+    options.kv_precision = *p;
+  }
   enable_flush_to_zero();
-  auto world = make_bench_world(args->get("scenario", kBenchScenario), args->get("model", "large"));
+  auto world = make_bench_world(args->get("scenario", kBenchScenario), args->get("model", "large"), 16, options);
   if (!world.ok()) return fail(world.status());
   const ModelConfig& c = world->model->config();
   nlohmann::ordered_json out;
   out["model"] = c.name;
   out["threads"] = 1;
+  out["kv_precision"] = kv_precision_name(options.kv_precision);
   out["lights"] = world->scenario->signals.empty() ? 0 : world->scenario->signals[world->scenario->current_time_index].size();
   out["map_segments"] = world->map->size();
 
@@ -152,7 +163,8 @@ int bench_main(int argc, char** argv) {
   out[absl::StrCat("session_bytes_after_", long_steps, "_steps")] = (*s)->memory_bytes();
   if (long_steps != 1000) out["session_bytes_after_1000_steps"] = nullptr;  // not measured in this run
   out["session_cache_tokens"] = (*s)->cache_tokens();
-  out["kv_bytes_per_token"] = 2 * c.decoder_layers * c.d_model * sizeof(float);
+  out["kv_bytes_per_token"] =
+      2 * c.decoder_layers * c.d_model * (options.kv_precision == KvPrecision::fp16 ? sizeof(uint16_t) : sizeof(float));
   out["map_bytes_shared"] = world->map->bytes();
   if (args->has("json")) {
     std::puts(out.dump(2).c_str());

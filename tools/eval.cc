@@ -1,19 +1,25 @@
 // scenestreamer eval --data FILE_OR_DIR... --model W --mode motion|full --rollouts K --seed S [--baseline cv|log]
-//                   [--sdc model|log] --json OUT [--plots DIR] [--threads N]
+//                   [--sdc model|log] --json OUT [--plots DIR] [--threads N] [--wosac-submission DIR]
+// scenestreamer eval --data FILE_OR_DIR... --submission FILE_OR_DIR --json OUT
 // scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT]
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <chrono>
+#include <filesystem>
+#include <map>
 #include <cstdio>
 #include <fstream>
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <type_traits>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "engine/eval/aggregate.h"
 #include "engine/eval/evaluate.h"
+#include "engine/eval/submission.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
@@ -30,6 +36,9 @@ constexpr const char* kUsage =
     "usage: scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --json OUT.json\n"
     "                          ([--model WEIGHTS] [--mode motion|full] | --baseline cv|log)\n"
     "                          [--sdc model|log] [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
+    "                          [--top-p P] [--temperature T]\n"
+    "                          [--wosac-submission DIR [--submission-metadata FILE.json]]\n"
+    "       scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --submission FILE_OR_DIR --json OUT.json\n"
     "       scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT.json]\n"
     "  Rolls every scenario out K times (default 4) from its current frame to its last (any length: a 20 s scenario\n"
     "  is rolled out for 20 s) and scores the rollouts against the log: WOSAC 2025 realism (meta-metric, its ten\n"
@@ -46,6 +55,18 @@ constexpr const char* kUsage =
     "                to stderr)\n"
     "  --plots DIR   SVG histograms of each feature, log vs rollouts\n"
     "  --threads N   worker threads (default: the hardware's)\n"
+    "  --top-p P, --temperature T  the model's sampling (as a session's; defaults 0.8 and 0.7)\n"
+    "  --wosac-submission DIR  also write the rollouts as a Waymo Open Sim Agents Challenge submission\n"
+    "                (DIR/submission.binproto-00000-of-0000N, 32 scenarios per shard): every agent valid at the\n"
+    "                current frame, x, y, z, heading at 10 Hz after it; motion mode or --baseline cv, --sdc model.\n"
+    "                The rollouts are scored as the files hold them (float32), so scoring the files gives the\n"
+    "                same numbers. A scenario that ends at its current frame (the challenge's test set) is rolled\n"
+    "                out for 80 frames and written, not scored. --submission-metadata: a JSON object of the\n"
+    "                challenge's metadata fields (account_name, unique_method_name, authors, ...), copied into\n"
+    "                every shard\n"
+    "  --submission  score the rollouts of a submission (ours, or any model's) instead of running a policy: its\n"
+    "                scenarios must be exactly those of --data (the logs), every rollout must hold every agent\n"
+    "                valid at the current frame over the scenario's future; --sdc model only\n"
     "  --compare     two --json results of the same scenarios and --sdc rule: each metric's difference B - A with a\n"
     "                95 % paired bootstrap interval over scenarios (--bootstrap N resamples, default 10000; --seed S,\n"
     "                default 1); --json OUT writes the comparison too\n";
@@ -58,13 +79,19 @@ int fail(const std::string& msg) {
 template <typename T>
 bool parse_number(const Args& args, const char* flag, T* out) {
   if (!args.has(flag)) return true;
-  if (absl::SimpleAtoi(args.get(flag), out)) return true;
-  std::fprintf(stderr, "eval: --%s '%s' is not a whole number\n", flag, args.get(flag).c_str());
+  if constexpr (std::is_floating_point_v<T>) {
+    if (absl::SimpleAtod(args.get(flag), out)) return true;
+  } else if (absl::SimpleAtoi(args.get(flag), out)) {
+    return true;
+  }
+  std::fprintf(stderr, "eval: --%s '%s' is not a %s\n", flag, args.get(flag).c_str(),
+               std::is_floating_point_v<T> ? "number" : "whole number");
   return false;
 }
 
 int compare_main(const Args& args) {
-  for (const char* flag : {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads"})
+  for (const char* flag :
+       {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads", "top-p", "temperature"})
     if (args.has(flag)) return fail(absl::StrCat("--compare takes two result files: --", flag, " does not apply"));
   if (args.positional.size() != 1)
     return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + args.positional.size()));
@@ -92,7 +119,8 @@ int compare_main(const Args& args) {
 int eval_main(int argc, char** argv) {
   auto args = parse_args(argc, argv, 1,
                          {"data", "model", "mode", "rollouts", "seed", "baseline", "sdc", "json", "plots", "threads",
-                          "compare", "bootstrap"},
+                          "compare", "bootstrap", "wosac-submission", "submission-metadata", "submission", "top-p",
+                          "temperature"},
                          {"help"});
   if (args.ok() && !args->has("help") && args->has("compare")) return compare_main(*args);
   if (args.ok() && args->has("bootstrap") && !args->has("help")) return fail("--bootstrap goes with --compare");
@@ -113,7 +141,32 @@ int eval_main(int argc, char** argv) {
     if (b == "cv") options.policy = EvalPolicy::constant_velocity;
     else if (b == "log") options.policy = EvalPolicy::log_replay;
     else return fail("--baseline '" + b + "' is not cv or log");
-    if (args->has("model") || args->has("mode")) return fail("--baseline runs without a model: drop --model and --mode");
+    for (const char* flag : {"model", "mode", "top-p", "temperature"})
+      if (args->has(flag)) return fail(absl::StrCat("--baseline runs without a model: drop --", flag));
+  }
+  if (args->has("submission")) {
+    for (const char* flag : {"baseline", "model", "mode", "rollouts", "seed", "wosac-submission", "submission-metadata",
+                             "top-p", "temperature"})
+      if (args->has(flag))
+        return fail(absl::StrCat("--submission scores the rollouts it holds: --", flag, " does not apply"));
+    if (args->get("sdc", "model") != "model")
+      return fail("--submission: a submission's rollouts drive every agent, the SDC included (--sdc model only)");
+    options.policy = EvalPolicy::submission;
+  }
+  const bool write_submission = args->has("wosac-submission");
+  if (args->has("submission-metadata") && !write_submission)
+    return fail("--submission-metadata goes with --wosac-submission");
+  if (write_submission) {
+    if (options.policy == EvalPolicy::log_replay)
+      return fail("--wosac-submission: log replay leaves agents without a state where the log has none; a "
+                  "submission holds every agent at every frame (use the model or --baseline cv)");
+    if (args->get("mode", "motion") != "motion")
+      return fail("--wosac-submission takes motion mode: the challenge resimulates the log's agents, and full mode's "
+                  "generated agents have no place in a submission");
+    if (args->get("sdc", "model") != "model")
+      return fail("--wosac-submission: the challenge's rule is that the simulation drives every agent, the SDC "
+                  "included (--sdc model)");
+    options.submission_precision = true;
   }
   const std::string sdc = args->get("sdc", "model");
   if (sdc == "model") options.sdc = SdcRule::model;
@@ -125,8 +178,12 @@ int eval_main(int argc, char** argv) {
   else return fail("--mode '" + mode + "' is not motion or full");
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (!parse_number(*args, "rollouts", &options.rollouts) || !parse_number(*args, "seed", &options.session.seed) ||
-      !parse_number(*args, "threads", &threads))
+      !parse_number(*args, "threads", &threads) || !parse_number(*args, "top-p", &options.session.top_p) ||
+      !parse_number(*args, "temperature", &options.session.temperature))
     return 2;
+  if (!(options.session.top_p > 0 && options.session.top_p <= 1)) return fail("--top-p must be in (0, 1]");
+  if (!(options.session.temperature > 0) || !std::isfinite(options.session.temperature))
+    return fail("--temperature must be positive");
   if (options.rollouts < 1 || options.rollouts > 1024) return fail("--rollouts must be in 1..1024");
   if (threads < 1 || threads > 1024) return fail("--threads must be in 1..1024");
 
@@ -142,12 +199,63 @@ int eval_main(int argc, char** argv) {
     run.model_path = *path;
     model = *m;
   }
+  SubmissionMetadata metadata;
+  if (args->has("submission-metadata")) {
+    auto m = read_submission_metadata(args->get("submission-metadata"));
+    if (!m.ok()) return fail(std::string(m.status().message()));
+    metadata = std::move(*m);
+  }
   auto scenarios = read_scenarios(paths);
   if (!scenarios.ok()) return fail(std::string(scenarios.status().message()));
   if (scenarios->empty()) return fail(absl::StrCat("no scenarios found in ", paths[0], paths.size() > 1 ? " ..." : ""));
   std::vector<std::shared_ptr<const Scenario>> all;
-  for (Scenario& s : *scenarios) all.push_back(std::make_shared<const Scenario>(std::move(s)));
+  int history_only = 0;  // scenarios that end at their current frame (the challenge's test set)
+  for (Scenario& s : *scenarios) {
+    if (write_submission && s.num_frames() == s.current_time_index + 1) {
+      s = with_empty_future(s, kChallengeFutureFrames);
+      ++history_only;
+    }
+    all.push_back(std::make_shared<const Scenario>(std::move(s)));
+  }
   scenarios->clear();
+
+  // --submission: each log's rollouts, matched by scenario id in both directions.
+  std::vector<const ScenarioRollouts*> submitted(all.size(), nullptr);
+  Submission submission;
+  if (options.policy == EvalPolicy::submission) {
+    auto read = read_submission({args->get("submission")});
+    if (!read.ok()) return fail(std::string(read.status().message()));
+    submission = std::move(*read);
+    std::map<std::string, const ScenarioRollouts*> by_id;
+    for (const ScenarioRollouts& r : submission.rollouts) by_id[r.scenario_id] = &r;
+    for (size_t i = 0; i < all.size(); ++i) {
+      auto it = by_id.find(all[i]->id);
+      if (it == by_id.end())
+        return fail(absl::StrCat("--submission has no rollouts of scenario ", all[i]->id, " (in --data)"));
+      submitted[i] = it->second;
+      by_id.erase(it);
+    }
+    if (!by_id.empty())
+      return fail(absl::StrCat("--submission has ", by_id.size(), " scenario(s) that --data does not, e.g. ",
+                               by_id.begin()->first, ": give their logs too"));
+    options.rollouts = static_cast<int>(submitted[0]->joint_scenes.size());
+    for (size_t i = 0; i < all.size(); ++i)
+      if (static_cast<int>(submitted[i]->joint_scenes.size()) != options.rollouts)
+        return fail(absl::StrCat("--submission: scenario ", all[i]->id, " has ", submitted[i]->joint_scenes.size(),
+                                 " rollouts, ", all[0]->id, " has ", options.rollouts,
+                                 "; the metrics compare scenarios with the same number"));
+  }
+  // --wosac-submission: each scenario's rollouts, written shard by shard as soon as a shard's scenarios are done.
+  const int shards = submission_shard_count(static_cast<int>(all.size()));
+  std::vector<std::optional<ScenarioRollouts>> to_write(all.size());
+  std::vector<int> shard_left(shards, 0);
+  for (size_t i = 0; i < all.size(); ++i) ++shard_left[i / kScenariosPerShard];
+  std::vector<ScenarioRollouts> written;  // kept for challenge_problems: trajectories dropped once written
+  if (write_submission) {
+    std::error_code ec;
+    std::filesystem::create_directories(args->get("wosac-submission"), ec);
+    if (ec) return fail(absl::StrCat("cannot create --wosac-submission ", args->get("wosac-submission"), ": ", ec.message()));
+  }
 
   // A bounded pool: each worker takes the next scenario; results land in the scenario's slot, so their order (and,
   // with per-rollout seeds, their values) does not depend on which thread ran what.
@@ -156,12 +264,42 @@ int eval_main(int argc, char** argv) {
   std::atomic<size_t> next{0};
   std::mutex log_mu;
   const auto start = std::chrono::steady_clock::now();
+  std::optional<absl::Status> write_error;
   auto worker = [&] {
     for (size_t i = next++; i < all.size(); i = next++) {
-      results[i] = evaluate_scenario(all[i], options, model, maps.get());
+      std::vector<JointScene> scenes;
+      if (submitted[i]) {
+        auto given = scenes_from_rollouts(*all[i], *submitted[i], args->get("submission"));
+        if (!given.ok()) {
+          results[i] = given.status();
+        } else {
+          results[i] = evaluate_scenario(all[i], options, model, maps.get(), &*given);
+        }
+      } else {
+        results[i] = evaluate_scenario(all[i], options, model, maps.get(), nullptr, write_submission ? &scenes : nullptr);
+      }
+      std::optional<ScenarioRollouts> rollouts;
+      if (write_submission && results[i]->ok()) {
+        auto r = rollouts_from_scenes(*all[i], scenes);
+        if (!r.ok()) results[i] = r.status();
+        else rollouts = std::move(*r);
+      }
       const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       std::lock_guard<std::mutex> lock(log_mu);
       std::fprintf(stderr, "eval: %s %s (%.0f s)\n", all[i]->id.c_str(), results[i]->ok() ? "done" : "failed", secs);
+      if (!rollouts) continue;
+      to_write[i] = std::move(rollouts);
+      const int shard = static_cast<int>(i / kScenariosPerShard);
+      if (--shard_left[shard] > 0 || write_error) continue;
+      std::vector<ScenarioRollouts> batch;
+      for (size_t k = shard * size_t{kScenariosPerShard}; k < std::min(all.size(), (shard + 1) * size_t{kScenariosPerShard}); ++k) {
+        batch.push_back(std::move(*to_write[k]));
+        to_write[k].reset();
+      }
+      const std::string path = submission_shard_path(args->get("wosac-submission"), shard, shards);
+      if (auto st = write_submission_shard(path, batch, metadata); !st.ok()) write_error = st;
+      for (ScenarioRollouts& r : batch)
+        written.push_back({r.scenario_id, std::vector<std::vector<SimulatedTrajectory>>(r.joint_scenes.size())});
     }
   };
   std::vector<std::thread> pool;
@@ -172,6 +310,7 @@ int eval_main(int argc, char** argv) {
     if (!r->ok()) return fail(std::string(r->status().message()));
     evaluations.push_back(std::move(**r));
   }
+  if (write_error) return fail(std::string(write_error->message()));
 
   const DatasetEvaluation d = aggregate(evaluations);
   run.policy = options.policy;
@@ -179,6 +318,7 @@ int eval_main(int argc, char** argv) {
   run.mode = options.session.mode;
   run.rollouts = options.rollouts;
   run.seed = options.session.seed;
+  run.top_p = options.session.top_p, run.temperature = options.session.temperature;
   const std::string json = eval_json(run, d, evaluations).dump(2) + "\n";
   const std::string out = args->get("json");
   if (out == "-") {
@@ -190,6 +330,18 @@ int eval_main(int argc, char** argv) {
     if (!f) return fail("cannot write --json " + out);
   }
   std::fputs(eval_table(run, d).c_str(), out == "-" ? stderr : stdout);
+  if (write_submission) {
+    std::FILE* text = out == "-" ? stderr : stdout;
+    std::fprintf(text, "\nsubmission: %zu scenarios x %d rollouts in %d shard(s) in %s\n", written.size(),
+                 options.rollouts, shards, args->get("wosac-submission").c_str());
+    if (history_only)
+      std::fprintf(text, "  %d scenario(s) end at their current frame (the challenge's test set): rolled out for %d "
+                   "frames and written, not scored (no logged future)\n", history_only, kChallengeFutureFrames);
+    std::vector<const Scenario*> logs;
+    for (const auto& s : all) logs.push_back(s.get());
+    for (const std::string& p : challenge_problems(written, logs, metadata))
+      std::fprintf(text, "  not yet valid for the challenge: %s\n", p.c_str());
+  }
   if (args->has("plots")) {
     std::vector<std::string> written;
     const std::string label = options.policy == EvalPolicy::model ? absl::StrCat("model, ", mode, " mode")

@@ -1,7 +1,9 @@
-// scenestreamer simulate --scenario FILE --model W --mode motion|full|densify --sdc model|log --steps N --seed S --out FILE
+// scenestreamer simulate --scenario FILE --model W --mode motion|full|densify --sdc model|log --steps N --seed S
+//                        [--rollout K] --out FILE
 #include <cstdio>
 
 #include "absl/strings/numbers.h"
+#include "engine/eval/evaluate.h"
 #include "engine/eval/model_rollout.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
@@ -17,14 +19,20 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: scenestreamer simulate --scenario FILE [--model WEIGHTS] --out OUT.tfrecord\n"
-    "                              [--mode motion|full|densify] [--sdc model|log] [--steps N] [--seed S] [--index I]\n"
+    "                              [--mode motion|full|densify] [--sdc model|log] [--steps N] [--seed S] [--rollout K]\n"
+    "                              [--index I]\n"
     "                              [--top-p P] [--temperature T] [--max-agents N] [--densify-target N]\n"
     "  Rolls the scenario out from its current step for N model steps (0.5 s each; default: to the scenario's last\n"
     "  frame, 16 steps for a 91-frame WOMD scenario, 38 for a 20 s one; more steps go on past the log) and writes it\n"
-    "  as a 10 Hz WOMD Scenario TFRecord.\n"
+    "  as a complete 10 Hz WOMD Scenario: the log's frames up to its current frame as logged (same id, current index,\n"
+    "  SDC, tracks to predict), the rollout after it; z held from each agent's last logged z; agents the model\n"
+    "  created as new tracks with ids above the log's.\n"
     "  --sdc model (default): the model drives the SDC like every other agent; no logged pose after the current\n"
     "        frame reaches the session. log: the SDC replays its logged poses while the log lasts (then keeps its last\n"
-    "        control), as an RL client's ego would.\n";
+    "        control), as an RL client's ego would.\n"
+    "  --seed S --rollout K (default 0): the session's seed is the one `eval --seed S` gives the scenario's K-th\n"
+    "        rollout, so simulate reproduces eval's rollouts one by one (and `convert --wosac-submission` turns them\n"
+    "        into the submission `eval --wosac-submission` writes).\n";
 
 int fail(const std::string& msg) {
   std::fprintf(stderr, "simulate: %s\n", msg.c_str());
@@ -36,7 +44,7 @@ int fail(const std::string& msg) {
 int simulate_main(int argc, char** argv) {
   auto args = parse_args(argc, argv, 1,
                          {"scenario", "model", "mode", "sdc", "steps", "seed", "out", "index", "top-p", "temperature",
-                          "max-agents", "densify-target"},
+                          "max-agents", "densify-target", "rollout"},
                          {"help"});
   if (!args.ok() || args->has("help") || !args->positional.empty() || !args->has("scenario") ||
       !args->has("out")) {
@@ -55,7 +63,7 @@ int simulate_main(int argc, char** argv) {
   SdcRule sdc_rule = SdcRule::model;
   if (sdc == "log") sdc_rule = SdcRule::log;
   else if (sdc != "model") return fail("--sdc '" + sdc + "' is not model or log");
-  int steps = -1, index = 0;
+  int steps = -1, index = 0, rollout = 0;
   auto number = [&](const char* flag, auto* out) {
     if (!args->has(flag)) return true;
     using T = std::remove_pointer_t<decltype(out)>;
@@ -65,11 +73,13 @@ int simulate_main(int argc, char** argv) {
     if (!ok) std::fprintf(stderr, "simulate: --%s '%s' is not a number\n", flag, args->get(flag).c_str());
     return ok;
   };
-  if (!number("steps", &steps) || !number("seed", &o.seed) || !number("index", &index) || !number("top-p", &o.top_p) ||
+  if (!number("steps", &steps) || !number("seed", &o.seed) || !number("index", &index) ||
+      !number("rollout", &rollout) || !number("top-p", &o.top_p) ||
       !number("temperature", &o.temperature) || !number("max-agents", &o.max_agents) ||
       !number("densify-target", &o.densify_target))
     return 2;
   if (args->has("steps") && (steps < 0 || steps > 100000)) return fail("--steps must be in 0..100000");
+  if (rollout < 0 || rollout > 1000000) return fail("--rollout must be in 0..1000000");
 
   enable_flush_to_zero();
   auto path = model_path(*args);
@@ -87,17 +97,17 @@ int simulate_main(int argc, char** argv) {
   MapCache maps(*model);
   auto map = maps.get(*scenario);
   if (!map.ok()) return fail(std::string(map.status().message()));
+  const uint64_t seed = o.seed;
+  o.seed = rollout_seed(seed, scenario->id, rollout);
   auto results = run_model_rollout(*model, scenario, *map, o, sdc_rule, steps);
   if (!results.ok()) return fail(std::string(results.status().message()));
-  Scenario rollout = rollout_to_scenario(*scenario, *results);
-  // The export names the first controlled agent as the SDC; when the model drives it, name the log's SDC instead.
-  if (rollout.sdc_track_index < 0 && scenario->sdc_track_index >= 0)
-    for (size_t i = 0; i < rollout.tracks.size(); ++i)
-      if (rollout.tracks[i].id == scenario->tracks[scenario->sdc_track_index].id) rollout.sdc_track_index = static_cast<int>(i);
-  if (auto st = write_scenarios_tfrecord(args->get("out"), {rollout}); !st.ok()) return fail(std::string(st.message()));
-  std::printf("simulated %s (%s mode, --sdc %s, seed %llu): %zu steps, %zu agents at the end, %zu tracks in all -> %s\n",
-              scenario->id.c_str(), mode.c_str(), sdc.c_str(), static_cast<unsigned long long>(o.seed),
-              results->size() - 1, results->back().agents.size(), rollout.tracks.size(), args->get("out").c_str());
+  auto out = rollout_to_scenario(*scenario, *results);
+  if (!out.ok()) return fail(std::string(out.status().message()));
+  if (auto st = write_scenarios_tfrecord(args->get("out"), {*out}); !st.ok()) return fail(std::string(st.message()));
+  std::printf("simulated %s (%s mode, --sdc %s, seed %llu, rollout %d): %zu steps, %zu agents at the end, %zu tracks "
+              "in all -> %s\n",
+              scenario->id.c_str(), mode.c_str(), sdc.c_str(), static_cast<unsigned long long>(seed), rollout,
+              results->size() - 1, results->back().agents.size(), out->tracks.size(), args->get("out").c_str());
   return 0;
 }
 

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <mutex>
+#include <random>
 
 namespace client {
 
@@ -30,6 +33,20 @@ std::string flag_string(const Flags& flags, const std::string& name, const std::
 int flag_int(const Flags& flags, const std::string& name, int fallback) {
   const auto it = flags.values.find(name);
   return it == flags.values.end() ? fallback : std::atoi(it->second.c_str());
+}
+
+std::string new_session_id() {
+  static std::mutex mu;
+  static std::mt19937_64 rng{std::random_device{}()};
+  std::lock_guard<std::mutex> l(mu);
+  char hex[33];
+  std::snprintf(hex, sizeof hex, "%016llx%016llx", static_cast<unsigned long long>(rng()),
+                static_cast<unsigned long long>(rng()));
+  return hex;
+}
+
+void route_by(grpc::ClientContext* ctx, const std::string& session_id) {
+  if (!session_id.empty()) ctx->AddMetadata(kSessionIdHeader, session_id);
 }
 
 std::unique_ptr<pb::Simulator::Stub> connect(const std::string& target) {
@@ -60,8 +77,9 @@ pb::StepSceneRequest keep_heading_and_speed(const std::string& session_id, const
   return req;
 }
 
-grpc::Status close_session(pb::Simulator::Stub& stub, const std::string& session_id) {
+grpc::Status close_session(pb::Simulator::Stub& stub, const std::string& session_id, const std::string& route) {
   grpc::ClientContext ctx;
+  route_by(&ctx, route);
   pb::CloseSessionRequest close;
   close.set_session_id(session_id);
   pb::CloseSessionResponse closed;

@@ -33,6 +33,17 @@ bool parse_flags(int argc, char** argv, const std::vector<std::string>& valued, 
 std::string flag_string(const Flags& flags, const std::string& name, const std::string& fallback);
 int flag_int(const Flags& flags, const std::string& name, int fallback);
 
+// The metadata a session-affine router hashes (deploy/router/): with it on every call of a session, CreateSession
+// included, all of them reach the replica that holds the session. The client proposes the id, so the router can place
+// the session before it exists.
+inline const char* const kSessionIdHeader = "x-session-id";
+
+// A fresh session id to propose: 128 random bits in hex.
+std::string new_session_id();
+
+// Adds the x-session-id metadata to a call when `session_id` is not empty (clients that route by session pass it).
+void route_by(grpc::ClientContext* ctx, const std::string& session_id);
+
 // A stub over an insecure channel: the examples talk to a server on the same host or network.
 std::unique_ptr<pb::Simulator::Stub> connect(const std::string& target);
 
@@ -42,7 +53,7 @@ grpc::Status first_scenario(pb::Simulator::Stub& stub, std::string* name);
 // The examples' ego controller: every controlled agent keeps its heading and speed for the next 0.5 s.
 pb::StepSceneRequest keep_heading_and_speed(const std::string& session_id, const pb::Tick& tick);
 
-// Closes the session (the server would otherwise keep it until it is evicted).
-grpc::Status close_session(pb::Simulator::Stub& stub, const std::string& session_id);
+// Closes the session (the server would otherwise keep it until it is evicted). `route` as in route_by.
+grpc::Status close_session(pb::Simulator::Stub& stub, const std::string& session_id, const std::string& route = "");
 
 }  // namespace client

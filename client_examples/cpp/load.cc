@@ -1,7 +1,8 @@
-// scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME]
+// scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route]
 // N concurrent clients, each with its own session, each stepping M times as fast as the server answers (the ego
 // keeps its heading and speed). Reports steps per second over the whole run, per-step latency percentiles and
-// errors.
+// errors. --route: each client proposes its session id and sends it as x-session-id metadata on every call, for a
+// session-affine router (deploy/router/); the JSON then lists the ids.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -18,8 +19,9 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   client::Flags flags;
-  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario"}, {"json"}, &flags)) {
-    std::fprintf(stderr, "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME]\n");
+  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario"}, {"json", "route"}, &flags)) {
+    std::fprintf(stderr,
+                 "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route]\n");
     return 2;
   }
   const int clients = client::flag_int(flags, "clients", 4);
@@ -27,6 +29,7 @@ int main(int argc, char** argv) {
   const std::string target = client::flag_string(flags, "target", client::kDefaultTarget);
   std::string scenario = client::flag_string(flags, "scenario", "");
   const bool json = flags.switches.count("json") > 0;
+  const bool route = flags.switches.count("route") > 0;
   if (clients < 1 || steps < 1) return std::fprintf(stderr, "--clients and --steps must be positive\n"), 2;
   auto stub = client::connect(target);
   if (scenario.empty()) {
@@ -38,6 +41,7 @@ int main(int argc, char** argv) {
   std::mutex mu;
   std::vector<double> latencies_ms;
   std::string first_error;
+  std::vector<std::string> session_ids;
   auto error = [&](const std::string& what, const grpc::Status& st) {
     errors++;
     std::lock_guard<std::mutex> l(mu);
@@ -50,9 +54,12 @@ int main(int argc, char** argv) {
       pb::CreateSessionRequest create;
       create.set_scenario_name(scenario);
       create.set_seed(static_cast<uint64_t>(c));
+      const std::string key = route ? client::new_session_id() : "";  // the routing key: the proposed id
+      create.set_session_id(key);
       pb::CreateSessionResponse session;
       {
         grpc::ClientContext ctx;
+        client::route_by(&ctx, key);
         if (auto st = stub->CreateSession(&ctx, create, &session); !st.ok()) return error("CreateSession", st);
       }
       pb::Tick tick = session.initial();
@@ -61,6 +68,7 @@ int main(int argc, char** argv) {
         const pb::StepSceneRequest req = client::keep_heading_and_speed(session.session_id(), tick);
         pb::StepSceneResponse resp;
         grpc::ClientContext ctx;
+        client::route_by(&ctx, key);
         ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(300));
         const auto s0 = Clock::now();
         auto st = stub->StepScene(&ctx, req, &resp);
@@ -71,8 +79,9 @@ int main(int argc, char** argv) {
         }
         tick = resp.ticks(resp.ticks_size() - 1);
       }
-      if (auto st = client::close_session(*stub, session.session_id()); !st.ok()) error("CloseSession", st);
+      if (auto st = client::close_session(*stub, session.session_id(), key); !st.ok()) error("CloseSession", st);
       std::lock_guard<std::mutex> l(mu);
+      if (route) session_ids.push_back(session.session_id());
       latencies_ms.insert(latencies_ms.end(), mine.begin(), mine.end());
     });
   for (auto& t : threads) t.join();
@@ -83,13 +92,17 @@ int main(int argc, char** argv) {
     return latencies_ms[std::min(latencies_ms.size() - 1, static_cast<size_t>(p * latencies_ms.size()))];
   };
   const double sps = static_cast<double>(latencies_ms.size()) / seconds;
-  if (json)
+  if (json) {
+    std::string ids;
+    for (const std::string& id : session_ids) ids += (ids.empty() ? "\"" : ", \"") + id + "\"";
     std::printf("{\"clients\": %d, \"steps\": %d, \"errors\": %d, \"steps_per_second\": %.2f, "
-                "\"latency_ms_p50\": %.2f, \"latency_ms_p99\": %.2f}\n",
-                clients, steps, errors.load(), sps, pct(0.5), pct(0.99));
-  else
+                "\"latency_ms_p50\": %.2f, \"latency_ms_p99\": %.2f%s%s%s}\n",
+                clients, steps, errors.load(), sps, pct(0.5), pct(0.99), route ? ", \"session_ids\": [" : "",
+                ids.c_str(), route ? "]" : "");
+  } else {
     std::printf("%d clients x %d steps on %s: %.2f steps/s, latency p50 %.1f ms, p99 %.1f ms, %d errors%s%s\n",
                 clients, steps, scenario.c_str(), sps, pct(0.5), pct(0.99), errors.load(),
                 first_error.empty() ? "" : "; first: ", first_error.c_str());
+  }
   return errors ? 1 : 0;
 }

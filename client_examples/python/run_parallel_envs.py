@@ -1,14 +1,16 @@
-"""Runs 8 SceneStreamer environments in parallel threads against one server, each driven by the cruise controller,
-and prints what each saw.
+"""Runs N SceneStreamer environments against one server as one vector environment (each tick: N StepScene calls in
+flight at once), each ego driven by the cruise policy, and prints what each episode got.
 
-    PYTHONPATH=build/client_examples/python:client_examples/python /usr/bin/python3 \
-        client_examples/python/run_parallel_envs.py --target 127.0.0.1:50051 --envs 8 --steps 20
+    /usr/bin/python3 client_examples/python/run_parallel_envs.py --target 127.0.0.1:50051 --envs 8 --steps 20
+
+Needs the scenestreamer package: `pip install ./python` (README, "RL clients"), or PYTHONPATH=build/python.
 """
 import argparse
-import threading
 import time
 
-from scenestreamer_env import SceneStreamerEnv, cruise
+import numpy as np
+
+from scenestreamer import SceneStreamerVectorEnv, cruise
 
 
 def main():
@@ -16,39 +18,32 @@ def main():
     p.add_argument("--target", default="127.0.0.1:50051")
     p.add_argument("--envs", type=int, default=8)
     p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--route", action="store_true", help="send x-session-id metadata (behind a session-affine router)")
     args = p.parse_args()
-    results, errors = {}, []
-
-    def run(i):
-        env = SceneStreamerEnv(args.target, max_steps=args.steps)
-        try:
-            obs, info = env.reset(seed=i)
-            total, steps, agents = 0.0, 0, 0
-            while True:
-                obs, reward, terminated, truncated, info = env.step(cruise(obs))
-                total, steps, agents = total + reward, steps + 1, info["agents"]
-                if terminated or truncated:
-                    break
-            results[i] = (steps, total, agents, terminated)
-        except Exception as e:  # reported below: one failing env must not hide the others' results
-            errors.append(f"env {i}: {e}")
-        finally:
-            env.close()
-
     t0 = time.time()
-    threads = [threading.Thread(target=run, args=(i,)) for i in range(args.envs)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    for i in sorted(results):
-        steps, total, agents, crashed = results[i]
-        print(f"env {i}: {steps} steps, return {total:.1f}, {agents} background agents at the end"
-              f"{', crashed' if crashed else ''}")
-    print(f"{len(results)} environments in {time.time() - t0:.1f} s, {len(errors)} errors")
-    for e in errors:
-        print(e)
-    raise SystemExit(1 if errors else 0)
+    venv = SceneStreamerVectorEnv(args.envs, target=args.target, max_steps=args.steps, route=args.route)
+    try:
+        obs, _ = venv.reset(seed=0)
+        returns = np.zeros(args.envs)
+        steps = np.zeros(args.envs, int)
+        ended = {}  # env -> (steps, return, agents seen at the end, how it ended)
+        while len(ended) < args.envs:
+            actions = np.stack([cruise({k: v[i] for k, v in obs.items()}) for i in range(args.envs)])
+            obs, rewards, terminated, truncated, infos = venv.step(actions)
+            returns += rewards
+            steps += 1
+            for i in range(args.envs):
+                if (terminated[i] or truncated[i]) and i not in ended:
+                    final = infos["final_info"][i]
+                    how = "truncated" if truncated[i] else ", ".join(
+                        k for k in ("collision", "off_road", "ran_red_light") if final.get(k)) or "terminated"
+                    ended[i] = (steps[i], returns[i], final["agents"], how)
+    finally:
+        venv.close()
+    for i in sorted(ended):
+        n, ret, agents, how = ended[i]
+        print(f"env {i}: {n} steps, return {ret:.1f}, {agents} agents at the end, {how}")
+    print(f"{len(ended)} environments in {time.time() - t0:.1f} s")
 
 
 if __name__ == "__main__":

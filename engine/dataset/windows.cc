@@ -6,7 +6,7 @@
 #include <unordered_map>
 
 #include "absl/strings/str_cat.h"
-#include "engine/base/rng.h"
+#include "engine/dataset/dataset_rng.h"
 
 namespace ss {
 namespace {
@@ -50,7 +50,7 @@ class Cutter {
  public:
   Cutter(const SumoMap& map, const FcdRecording& fcd, const SignalTimeline& signals,
          const std::vector<Incident>& incidents, const WindowOptions& o, uint64_t seed, const std::string& prefix)
-      : map_(map), fcd_(fcd), signals_(signals), o_(o), rng_(seed), prefix_(prefix),
+      : map_(map), fcd_(fcd), signals_(signals), o_(o), rng_(dataset_rng(seed)), prefix_(prefix),
         incidents_(incident_frames(fcd, incidents, o)) {}
 
   WindowCut run() {

@@ -78,6 +78,16 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
     d.has_mmd = d.has_mmd || s.has_mmd;
     d.to_match += s.to_match, d.matched += s.matched;
     d.match_distance += s.match_distance * s.matched;
+    if (s.has_mmd) {
+      for (auto [sum, add] :
+           {std::pair{&d.placed_log, &s.placed_log}, std::pair{&d.placed_generated, &s.placed_generated}})
+        sum->agents += add->agents, sum->vehicles += add->vehicles, sum->offroad_vehicles += add->offroad_vehicles;
+      if (s.placed_log.agents > 0 && s.rollouts > 0) {
+        ++d.placed_scenarios;
+        const double ratio = static_cast<double>(s.placed_generated.agents) / s.rollouts / s.placed_log.agents;
+        d.placed_within_30 += std::abs(ratio - 1) <= 0.3;
+      }
+    }
     for (int f = 0; f < kNumRealismFeatures; ++f) {
       auto& h = d.histograms[f];
       const auto& src = s.histograms[f];

@@ -29,6 +29,10 @@ struct DatasetEvaluation {
   double filled_share = 0;  // mean over scenarios
   int to_match = 0, matched = 0;
   double match_distance = 0;
+  // Full mode: the log's and the generated agents (summed over scenarios; the generated over rollouts too), and the
+  // scenarios whose generated count (mean over rollouts) is within 30 % of the log's (of those with a log agent).
+  PlacedAgents placed_log, placed_generated;
+  int placed_within_30 = 0, placed_scenarios = 0;
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // summed
   // Values undefined (NaN) in some scenarios are averaged over the others; how many were left out, by JSON key.
   std::map<std::string, int> undefined;

@@ -8,6 +8,8 @@
 #include "engine/eval/baselines.h"
 #include "engine/eval/model_rollout.h"
 #include "engine/eval/scene_features.h"
+#include "engine/eval/submission.h"
+#include "engine/map/focus.h"
 
 namespace ss {
 namespace {
@@ -55,6 +57,7 @@ const char* eval_policy_name(EvalPolicy p) {
     case EvalPolicy::model: return "model";
     case EvalPolicy::constant_velocity: return "constant velocity";
     case EvalPolicy::log_replay: return "log replay";
+    case EvalPolicy::submission: return "submission";
   }
   return "?";
 }
@@ -80,7 +83,9 @@ uint64_t rollout_seed(uint64_t base, const std::string& scenario_id, int rollout
 }
 
 absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scenario> scenario, const EvalOptions& options,
-                                                     std::shared_ptr<const Model> model, MapCache* maps) {
+                                                     std::shared_ptr<const Model> model, MapCache* maps,
+                                                     const std::vector<JointScene>* submitted,
+                                                     std::vector<JointScene>* scenes) {
   const Scenario& s = *scenario;
   const int now = s.current_time_index;
   if (options.rollouts < 1) return absl::InvalidArgumentError("rollouts must be at least 1");
@@ -114,11 +119,22 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
 
   std::vector<JointScene> rollouts;
   std::vector<SceneFeatures> sims;
-  if (options.policy != EvalPolicy::model) {
+  if (options.policy == EvalPolicy::submission) {
+    if (!submitted || submitted->empty())
+      return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, ": the submission policy needs rollouts"));
+    for (const JointScene& scene : *submitted) {
+      if (scene.objects.size() != tracks.size() || scene.num_frames() != s.num_frames())
+        return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, ": a submitted rollout does not hold its ",
+                                                       tracks.size(), " sim agents over ", s.num_frames(), " frames"));
+      sims.push_back(scene_features(scene, evaluated, map, now, &log, evaluated));
+    }
+    rollouts = *submitted;
+  } else if (options.policy != EvalPolicy::model) {
     // Deterministic policies: one rollout, repeated so the estimators see the same sample size as the model's.
     JointScene scene = options.policy == EvalPolicy::constant_velocity ? constant_velocity_scene(s, tracks)
                                                                        : log_replay_scene(s, tracks);
     if (options.sdc == SdcRule::log && sdc_k >= 0) scene.objects[sdc_k] = log.objects[sdc_k];  // as an RL ego
+    if (options.submission_precision) round_to_submission(scene, now);
     const SceneFeatures f = scene_features(scene, evaluated, map, now, &log, evaluated);
     rollouts.assign(options.rollouts, scene);
     sims.assign(options.rollouts, f);
@@ -132,6 +148,13 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     const std::vector<InitialAgent> log_initial = log_initial_agents(s);
     const std::vector<InitialAgent> log_strict = strict_set(log_initial, frame, s);
     MmdMean strict, relaxed;
+    // The session's region: around the SDC when it is the controlled agent (--sdc log), else the scenario's focus
+    // (session_create.cc); under --sdc model the model makes a stand-in for the SDC too, so the log's side counts it.
+    const bool sdc_controlled = options.sdc == SdcRule::log && s.sdc_track_index >= 0;
+    const ObjectState* sdc_now = sdc_controlled ? &s.tracks[s.sdc_track_index].states[now] : nullptr;
+    const Vec2 centre = sdc_now ? Vec2{sdc_now->x, sdc_now->y} : scenario_focus(s);
+    if (full)
+      out.placed_log = log_placed_agents(s, map.road_edges, centre, options.session.roi_radius, !sdc_controlled);
     int driven = 0, filled = 0;
     double match_total = 0;
     for (int k = 0; k < options.rollouts; ++k) {
@@ -140,6 +163,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
       auto steps = run_model_rollout(model, scenario, *context, o, options.sdc);
       if (!steps.ok()) return steps.status();
       RolloutScene r = rollout_scene(s, tracks, *steps, full);
+      if (options.submission_precision) round_to_submission(r.scene, now);
       driven += r.driven_frames, filled += r.filled_frames;
       out.to_match += r.to_match, out.matched += r.matched;
       match_total += r.match_distance * r.matched;
@@ -147,6 +171,9 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
         const std::vector<InitialAgent> gen = generated_initial_agents(steps->front());
         relaxed.add(initial_state_mmd(gen, log_initial, frame));
         strict.add(initial_state_mmd(strict_set(gen, frame, s), log_strict, frame));
+        const PlacedAgents p = placed_agents(gen, {}, s, map.road_edges);
+        out.placed_generated.agents += p.agents, out.placed_generated.vehicles += p.vehicles;
+        out.placed_generated.offroad_vehicles += p.offroad_vehicles;
       }
       sims.push_back(scene_features(r.scene, evaluated, map, now, &log, evaluated));
       rollouts.push_back(std::move(r.scene));
@@ -156,6 +183,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
     if (full) out.has_mmd = true, out.mmd_strict = strict.mean(), out.mmd_relaxed = relaxed.mean();
   }
 
+  out.rollouts = static_cast<int>(rollouts.size());
   out.realism = score_realism(log_features, sims, types);
   for (const FrameWindow& w : realism_windows(out.future_frames))
     out.windows.push_back(score_realism(log_features, sims, types, w));
@@ -175,6 +203,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
   }
   out.motion_all = motion_metrics(log, rollouts, all, now);
   out.motion_predict = motion_metrics(log, rollouts, predict, now);
+  if (scenes) *scenes = std::move(rollouts);
   return out;
 }
 

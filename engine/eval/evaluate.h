@@ -12,19 +12,24 @@
 #include "engine/eval/meta_metric.h"
 #include "engine/eval/mmd.h"
 #include "engine/eval/motion_metrics.h"
+#include "engine/eval/placed_agents.h"
 #include "engine/sim/map_cache.h"
 #include "engine/sim/session.h"
 
 namespace ss {
 
-enum class EvalPolicy { model, constant_velocity, log_replay };
+// submission: rollouts made elsewhere (a WOSAC submission, read with submission.h), scored as given.
+enum class EvalPolicy { model, constant_velocity, log_replay, submission };
 const char* eval_policy_name(EvalPolicy p);
 
 struct EvalOptions {
   EvalPolicy policy = EvalPolicy::model;
   SdcRule sdc = SdcRule::model;  // who drives the SDC (joint_scene.h); under log it is not evaluated
   SessionOptions session;  // the model's mode and sampling; session.seed is the base seed of every rollout
-  int rollouts = 4;        // K
+  int rollouts = 4;        // K (a submission brings its own)
+  // Score each rollout's future as a submission holds it (x, y, z, heading rounded to float32: round_to_submission),
+  // so that scoring the submission written from these rollouts gives the same numbers.
+  bool submission_precision = false;
 };
 
 // Realism per window of the simulated future, so the drift of a long rollout shows: 0-8 s, 8-16 s, 16 s to the end
@@ -51,6 +56,7 @@ struct ScenarioEvaluation {
   int64_t sdc_id = -1;             // the SDC's object id; -1 when the scenario names none
   std::vector<int64_t> evaluated_ids;  // the evaluated objects' ids, in WOSAC's order
   int future_frames = 0;           // frames after the current one (80 in a 91-frame WOMD scenario)
+  int rollouts = 0;                // rollouts scored
   RealismScores realism;           // over the whole future
   std::vector<RealismScores> windows;  // per realism_windows(future_frames)
   MotionMetrics motion_all;        // every sim agent (but the SDC under SdcRule::log)
@@ -62,6 +68,9 @@ struct ScenarioEvaluation {
                                    // (the rest, 1 - filled_share, is the share the model drove)
   int to_match = 0, matched = 0;   // full mode, summed over rollouts: tracks to stand in for, and paired
   double match_distance = 0;       // full mode: mean distance of the pairs at the current frame
+  // Full mode: the log's agents in the session's region at the current frame, and the agents the model placed at
+  // its first step, summed over the rollouts.
+  PlacedAgents placed_log, placed_generated;
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // continuous features only
 };
 
@@ -69,8 +78,12 @@ struct ScenarioEvaluation {
 // not depend on the order or the thread scenarios are evaluated in.
 uint64_t rollout_seed(uint64_t base, const std::string& scenario_id, int rollout);
 
-// `model` and `maps` are needed (non-null) for EvalPolicy::model only.
+// `model` and `maps` are needed (non-null) for EvalPolicy::model only; `submitted` for EvalPolicy::submission only
+// (the scenario's rollouts as scenes_from_rollouts builds them). `scenes` (optional) receives the scored rollouts:
+// objects [0, sim agents) are the sim agents in track order, as rollouts_from_scenes expects.
 absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scenario> scenario, const EvalOptions& options,
-                                                     std::shared_ptr<const Model> model, MapCache* maps);
+                                                     std::shared_ptr<const Model> model, MapCache* maps,
+                                                     const std::vector<JointScene>* submitted = nullptr,
+                                                     std::vector<JointScene>* scenes = nullptr);
 
 }  // namespace ss

@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "engine/eval/baselines.h"
 #include "engine/map/focus.h"
+#include "engine/sim/rollout_export.h"
 #include "engine/tokens/fidelity.h"
 #include "engine/tokens/resample.h"
 
@@ -75,19 +76,14 @@ RolloutScene rollout_scene(const Scenario& s, const std::vector<int>& tracks, co
   out.scene = log_scene(s, tracks);
   if (steps.empty()) return out;
 
-  // Each agent's 2 Hz states, then 10 Hz from the current frame on.
-  std::map<int64_t, std::vector<StepState>> series;
+  // Each agent at 10 Hz from the current frame on.
+  std::map<int64_t, std::vector<StepState>> frames_of;
   std::map<int64_t, int> types;
   std::vector<int64_t> order;  // first appearance
-  for (size_t k = 0; k < steps.size(); ++k)
-    for (const AgentView& a : steps[k].agents) {
-      auto [it, added] = series.try_emplace(a.id, std::vector<StepState>(steps.size()));
-      if (added) order.push_back(a.id), types[a.id] = a.type;
-      it->second[k] = a.state;
-      it->second[k].valid = true;
-    }
-  std::map<int64_t, std::vector<StepState>> frames_of;
-  for (auto& [id, v] : series) frames_of[id] = upsample_states(v);
+  for (RolloutAgent& a : rollout_agents(steps)) {
+    order.push_back(a.id), types[a.id] = a.type;
+    frames_of[a.id] = std::move(a.frames);
+  }
   auto sim_at = [&](int64_t id, int f) -> const StepState* {
     auto it = frames_of.find(id);
     const int j = f - now;
@@ -101,7 +97,7 @@ RolloutScene rollout_scene(const Scenario& s, const std::vector<int>& tracks, co
   std::vector<int64_t> driver(tracks.size(), -1);
   std::vector<bool> generated_pair(tracks.size(), false);
   for (size_t k = 0; k < tracks.size(); ++k)
-    if (series.count(s.tracks[tracks[k]].id)) driver[k] = s.tracks[tracks[k]].id;
+    if (frames_of.count(s.tracks[tracks[k]].id)) driver[k] = s.tracks[tracks[k]].id;
   std::set<int64_t> used;
   if (match_generated) {
     std::vector<std::tuple<double, size_t, size_t>> pairs;  // distance, track k, agent index at the first step

@@ -75,18 +75,20 @@ struct TableTerms {
 // One query with its own key set, all heads at once: scores (heads x m) from the key rows in place (a gather would
 // copy each row for one use), the relation terms, softmax, then the weighted values (added to `out`, heads x dh) and
 // the weighted relation embedding (written to `rel_out`, heads x r).
-void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set, const MatMap& k,
-                const MatMap& v, float scale, Mat& scores, TableTerms& table, float* out, float* rel_out) {
+void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set,
+                const KeyValueRows& kv, float scale, Mat& scores, TableTerms& table, float* out, float* rel_out) {
   const int m = static_cast<int>(set.keys.size());
   const int mp = set.posed();
   scores.resize(shape.heads, m);
-  kernel_key_scores(shape, q, k.data(), set.keys.data(), m, scores.data());
+  if (kv.half()) kernel_key_scores_f16(shape, q, kv.kh, set.keys.data(), m, scores.data());
+  else kernel_key_scores(shape, q, kv.k, set.keys.data(), m, scores.data());
   if (!set.uniform) {
     kernel_relation_scores(shape, u, set.relation.data(), mp, scores.data(), m);
     if (mp < m) table.add_scores(set, u, shape.heads, shape.r, scores.data(), m);
   }
   kernel_softmax_rows(scores.data(), shape.heads, m, m, scale);
-  kernel_weighted_values(shape, scores.data(), v.data(), set.keys.data(), m, out);
+  if (kv.half()) kernel_weighted_values_f16(shape, scores.data(), kv.vh, set.keys.data(), m, out);
+  else kernel_weighted_values(shape, scores.data(), kv.v, set.keys.data(), m, out);
   if (set.uniform) {  // the weights sum to one
     Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_runs[0].row);
     return;
@@ -98,6 +100,11 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
 }  // namespace
 
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
+                       std::span<const QueryKeys* const> query_keys) {
+  return relative_attention(x, p, heads, KeyValueRows(k, v), query_keys);
+}
+
+Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
                        std::span<const QueryKeys* const> query_keys) {
   const int n = static_cast<int>(x.rows());
   const int d = static_cast<int>(x.cols());
@@ -129,19 +136,30 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     if (m == 0) continue;  // nothing to read: the output is the relation-value bias alone
     if (g <= 2) {
       for (int i : rows)
-        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, k, v, scale, scores, table, o.row(i).data(),
+        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, scores, table, o.row(i).data(),
                    rel.row(i).data());
       continue;
     }
-    // Keys 0..m-1 of k in order (a whole map): read in place; otherwise gather the rows once for the group.
-    const bool identity = m == k.rows() && std::is_sorted(set->keys.begin(), set->keys.end()) &&
+    // Keys 0..m-1 of k in order (a whole map) stored as floats: read in place; otherwise gather the rows once for
+    // the group (converting half floats).
+    const bool identity = !kv.half() && m == kv.rows && std::is_sorted(set->keys.begin(), set->keys.end()) &&
                           set->keys.front() == 0 && set->keys.back() == m - 1;
     if (!identity) {
-      kg = k(set->keys, Eigen::all);
-      vg = v(set->keys, Eigen::all);
+      kg.resize(m, d);
+      vg.resize(m, d);
+      for (int j = 0; j < m; ++j) {
+        const size_t at = static_cast<size_t>(set->keys[j]) * d;
+        if (kv.half()) {
+          halves_to_floats(kv.kh + at, d, kg.row(j).data());
+          halves_to_floats(kv.vh + at, d, vg.row(j).data());
+        } else {
+          std::copy_n(kv.k + at, d, kg.row(j).data());
+          std::copy_n(kv.v + at, d, vg.row(j).data());
+        }
+      }
     }
-    const MatMap kk = identity ? k : MatMap(kg.data(), m, d);
-    const MatMap vv = identity ? v : MatMap(vg.data(), m, d);
+    const MatMap kk = identity ? MatMap(kv.k, m, d) : MatMap(kg.data(), m, d);
+    const MatMap vv = identity ? MatMap(kv.v, m, d) : MatMap(vg.data(), m, d);
     for (int h = 0; h < heads; ++h) {
       // Scores, queries down and keys across: g x m.
       s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();

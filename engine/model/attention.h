@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -73,10 +74,27 @@ struct QueryKeys {
   }
 };
 
+// The keys and values attention may read: rows of two row-major matrices (d floats per row), stored as floats or as
+// half floats (binary16; the math converts them to float).
+struct KeyValueRows {
+  const float *k = nullptr, *v = nullptr;        // float storage
+  const uint16_t *kh = nullptr, *vh = nullptr;   // half storage (when k is null)
+  int rows = 0, d = 0;
+
+  KeyValueRows() = default;
+  KeyValueRows(const MatMap& keys, const MatMap& values)
+      : k(keys.data()), v(values.data()), rows(static_cast<int>(keys.rows())), d(static_cast<int>(keys.cols())) {}
+  KeyValueRows(const uint16_t* keys, const uint16_t* values, int n, int width)
+      : kh(keys), vh(values), rows(n), d(width) {}
+  bool half() const { return k == nullptr; }
+};
+
 // Attention for a batch of queries. `x`: the queries' normalised inputs (n x d). `k`, `v`: projected keys and values
 // of every key the queries may name. Queries that share one QueryKeys are computed together with matrix products.
 // Returns the output projection (n x d).
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
+                       std::span<const QueryKeys* const> query_keys);
+Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
                        std::span<const QueryKeys* const> query_keys);
 
 }  // namespace ss

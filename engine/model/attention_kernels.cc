@@ -6,9 +6,19 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdlib>
+#include <cstring>
 #include <limits>
 
 namespace ss {
+
+bool kernels_forced_plain() {
+  static const bool plain = [] {
+    const char* e = std::getenv("SCENESTREAMER_AB_PLAIN_KERNELS");
+    return e != nullptr && *e != 0 && *e != '0';
+  }();
+  return plain;
+}
 
 void kernel_key_scores_plain(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                              float* scores) {
@@ -57,6 +67,176 @@ void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float s
     for (int j = 0; j < cols; ++j) row[j] /= sum;
   }
 }
+
+// binary16 <-> binary32 in software (the plain forms and builds without F16C).
+float half_to_float(uint16_t h) {
+  const uint32_t sign = static_cast<uint32_t>(h & 0x8000) << 16;
+  uint32_t exp = (h >> 10) & 0x1f, man = h & 0x3ff, bits;
+  if (exp == 0) {
+    if (man == 0) {
+      bits = sign;
+    } else {  // subnormal: normalise
+      int e = -1;
+      do {
+        ++e;
+        man <<= 1;
+      } while (!(man & 0x400));
+      bits = sign | static_cast<uint32_t>(127 - 15 - e) << 23 | (man & 0x3ff) << 13;
+    }
+  } else if (exp == 31) {
+    bits = sign | 0x7f800000u | man << 13;
+  } else {
+    bits = sign | (exp + 127 - 15) << 23 | man << 13;
+  }
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+
+uint16_t float_to_half(float x) {
+  x = std::clamp(x, -65504.0f, 65504.0f);  // saturate: an overflow must not become an infinity in a softmax
+  uint32_t bits;
+  std::memcpy(&bits, &x, 4);
+  const uint16_t sign = static_cast<uint16_t>((bits >> 16) & 0x8000);
+  const uint32_t abs = bits & 0x7fffffffu;
+  if (abs > 0x7f800000u) return sign | 0x7e00;  // NaN
+  if (abs < 0x38800000u) {                      // below the smallest normal half: subnormal or zero
+    // Half subnormals are multiples of 2^-24: round abs / 2^-24 to nearest even with a float addition.
+    float v;
+    std::memcpy(&v, &abs, 4);
+    const float scaled = v * 16777216.0f;  // exact (a power of two)
+    const float r = std::nearbyint(scaled);
+    return sign | static_cast<uint16_t>(r);
+  }
+  // Normal: drop 13 mantissa bits, nearest even (a carry into the exponent is the right result).
+  const uint32_t rounded = abs + 0xfffu + ((abs >> 13) & 1);
+  return sign | static_cast<uint16_t>((rounded - (static_cast<uint32_t>(127 - 15) << 23)) >> 13);
+}
+
+void kernel_key_scores_f16_plain(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
+                                 float* scores) {
+  for (int j = 0; j < m; ++j) {
+    const uint16_t* kr = k + static_cast<size_t>(keys[j]) * s.d();
+    for (int h = 0; h < s.heads; ++h) {
+      float sum = 0;
+      for (int c = h * s.dh; c < (h + 1) * s.dh; ++c) sum += q[c] * half_to_float(kr[c]);
+      scores[h * m + j] = sum;
+    }
+  }
+}
+
+void kernel_weighted_values_f16_plain(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys,
+                                      int m, float* out) {
+  for (int j = 0; j < m; ++j) {
+    const uint16_t* vr = v + static_cast<size_t>(keys[j]) * s.d();
+    for (int h = 0; h < s.heads; ++h)
+      for (int c = h * s.dh; c < (h + 1) * s.dh; ++c) out[c] += a[h * m + j] * half_to_float(vr[c]);
+  }
+}
+
+#if defined(__F16C__) && defined(__AVX2__)
+void floats_to_halves(const float* x, int n, uint16_t* out) {
+  const __m256 hi = _mm256_set1_ps(65504.0f), lo = _mm256_set1_ps(-65504.0f);
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 c = _mm256_min_ps(_mm256_max_ps(_mm256_loadu_ps(x + i), lo), hi);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i), _mm256_cvtps_ph(c, _MM_FROUND_TO_NEAREST_INT));
+  }
+  for (; i < n; ++i) out[i] = float_to_half(x[i]);
+}
+void halves_to_floats(const uint16_t* x, int n, float* out) {
+  int i = 0;
+  for (; i + 8 <= n; i += 8)
+    _mm256_storeu_ps(out + i, _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(x + i))));
+  for (; i < n; ++i) out[i] = half_to_float(x[i]);
+}
+#else
+void floats_to_halves(const float* x, int n, uint16_t* out) {
+  for (int i = 0; i < n; ++i) out[i] = float_to_half(x[i]);
+}
+void halves_to_floats(const uint16_t* x, int n, float* out) {
+  for (int i = 0; i < n; ++i) out[i] = half_to_float(x[i]);
+}
+#endif
+
+#if defined(__F16C__) && defined(__AVX2__) && defined(__FMA__)
+namespace {
+
+inline __m256 load_h(const uint16_t* p) { return _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))); }
+
+inline __m128 sum4_h(__m256 a, __m256 b, __m256 c, __m256 d) {
+  const __m256 ab = _mm256_hadd_ps(a, b), cd = _mm256_hadd_ps(c, d);
+  const __m256 z = _mm256_hadd_ps(ab, cd);
+  return _mm_add_ps(_mm256_castps256_ps128(z), _mm256_extractf128_ps(z, 1));
+}
+
+template <int DH>
+void key_scores_h(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m, float* scores) {
+  constexpr int HV = DH / 8;
+  const int d = s.d();
+  for (int j = 0; j < m; ++j) {
+    const uint16_t* kr = k + static_cast<size_t>(keys[j]) * d;
+    for (int h = 0; h < s.heads; h += 4) {
+      __m256 acc[4];
+      for (int g = 0; g < 4; ++g) {
+        const int base = (h + g) * DH;
+        acc[g] = _mm256_mul_ps(_mm256_loadu_ps(q + base), load_h(kr + base));
+        for (int i = 1; i < HV; ++i)
+          acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(q + base + 8 * i), load_h(kr + base + 8 * i), acc[g]);
+      }
+      alignas(16) float lanes[4];
+      _mm_store_ps(lanes, sum4_h(acc[0], acc[1], acc[2], acc[3]));
+      for (int g = 0; g < 4; ++g) scores[(h + g) * m + j] = lanes[g];
+    }
+  }
+}
+
+template <int DH>
+void weighted_values_h(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
+                       float* out) {
+  const int d = s.d();
+  for (int c0 = 0; c0 < d; c0 += 64) {
+    const int h0 = c0 / DH;
+    __m256 acc[8];
+    for (int i = 0; i < 8; ++i) acc[i] = _mm256_loadu_ps(out + c0 + 8 * i);
+    for (int j = 0; j < m; ++j) {
+      const uint16_t* vr = v + static_cast<size_t>(keys[j]) * d + c0;
+      for (int i = 0; i < 8; ++i) {
+        const __m256 w = _mm256_broadcast_ss(a + (h0 + 8 * i / DH) * m + j);
+        acc[i] = _mm256_fmadd_ps(w, load_h(vr + 8 * i), acc[i]);
+      }
+    }
+    for (int i = 0; i < 8; ++i) _mm256_storeu_ps(out + c0 + 8 * i, acc[i]);
+  }
+}
+
+bool fast_shape_h(const AttentionShape& s) { return s.heads % 4 == 0 && (s.dh == 16 || s.dh == 32) && s.d() % 64 == 0; }
+
+}  // namespace
+
+void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
+                           float* scores) {
+  if (!fast_shape_h(s) || kernels_forced_plain()) return kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
+  if (s.dh == 32) return key_scores_h<32>(s, q, k, keys, m, scores);
+  key_scores_h<16>(s, q, k, keys, m, scores);
+}
+
+void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
+                                float* out) {
+  if (!fast_shape_h(s) || kernels_forced_plain()) return kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
+  if (s.dh == 32) return weighted_values_h<32>(s, a, v, keys, m, out);
+  weighted_values_h<16>(s, a, v, keys, m, out);
+}
+#else
+void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
+                           float* scores) {
+  kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
+}
+void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
+                                float* out) {
+  kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
+}
+#endif
 
 #if defined(__AVX512F__)
 namespace {
@@ -203,7 +383,173 @@ void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) 
   }
 }
 
-#else  // no AVX-512: the plain forms
+#elif defined(__AVX2__) && defined(__FMA__)
+namespace {
+
+// The sums of four vectors: lane g of the result is the sum of the eight lanes of the g-th argument.
+inline __m128 sum4(__m256 a, __m256 b, __m256 c, __m256 d) {
+  const __m256 ab = _mm256_hadd_ps(a, b), cd = _mm256_hadd_ps(c, d);
+  const __m256 z = _mm256_hadd_ps(ab, cd);  // [a b c d | a b c d], each half a partial sum
+  return _mm_add_ps(_mm256_castps256_ps128(z), _mm256_extractf128_ps(z, 1));
+}
+
+// DH: floats per head (16 or 32), so DH / 8 vectors per head; heads in groups of four.
+template <int DH>
+void key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m, float* scores) {
+  constexpr int HV = DH / 8;
+  const int d = s.d();
+  for (int j = 0; j < m; ++j) {
+    const float* kr = k + static_cast<size_t>(keys[j]) * d;
+    for (int h = 0; h < s.heads; h += 4) {
+      __m256 acc[4];
+      for (int g = 0; g < 4; ++g) {
+        const int base = (h + g) * DH;
+        acc[g] = _mm256_mul_ps(_mm256_loadu_ps(q + base), _mm256_loadu_ps(kr + base));
+        for (int i = 1; i < HV; ++i)
+          acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(q + base + 8 * i), _mm256_loadu_ps(kr + base + 8 * i), acc[g]);
+      }
+      alignas(16) float lanes[4];
+      _mm_store_ps(lanes, sum4(acc[0], acc[1], acc[2], acc[3]));
+      for (int g = 0; g < 4; ++g) scores[(h + g) * m + j] = lanes[g];
+    }
+  }
+}
+
+// Columns in blocks of 64 (eight accumulators); column c belongs to head c / DH.
+template <int DH>
+void weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m, float* out) {
+  const int d = s.d();
+  for (int c0 = 0; c0 < d; c0 += 64) {
+    const int h0 = c0 / DH;
+    __m256 acc[8];
+    for (int i = 0; i < 8; ++i) acc[i] = _mm256_loadu_ps(out + c0 + 8 * i);
+    for (int j = 0; j < m; ++j) {
+      const float* vr = v + static_cast<size_t>(keys[j]) * d + c0;
+      for (int i = 0; i < 8; ++i) {
+        const __m256 w = _mm256_broadcast_ss(a + (h0 + 8 * i / DH) * m + j);
+        acc[i] = _mm256_fmadd_ps(w, _mm256_loadu_ps(vr + 8 * i), acc[i]);
+      }
+    }
+    for (int i = 0; i < 8; ++i) _mm256_storeu_ps(out + c0 + 8 * i, acc[i]);
+  }
+}
+
+bool fast_shape(const AttentionShape& s) { return s.heads % 4 == 0 && (s.dh == 16 || s.dh == 32) && s.d() % 64 == 0; }
+
+}  // namespace
+
+void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
+                       float* scores) {
+  if (!fast_shape(s) || kernels_forced_plain()) return kernel_key_scores_plain(s, q, k, keys, m, scores);
+  if (s.dh == 32) return key_scores<32>(s, q, k, keys, m, scores);
+  key_scores<16>(s, q, k, keys, m, scores);
+}
+
+void kernel_weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
+                            float* out) {
+  if (!fast_shape(s) || kernels_forced_plain()) return kernel_weighted_values_plain(s, a, v, keys, m, out);
+  if (s.dh == 32) return weighted_values<32>(s, a, v, keys, m, out);
+  weighted_values<16>(s, a, v, keys, m, out);
+}
+
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+                            int stride) {
+  if (s.heads % 4 != 0 || s.r != 32 || kernels_forced_plain())
+    return kernel_relation_scores_plain(s, u, rel, m, scores, stride);
+  for (int j = 0; j < m; ++j) {
+    const float* rj = rel + j * 32;
+    const __m256 r0 = _mm256_loadu_ps(rj), r1 = _mm256_loadu_ps(rj + 8), r2 = _mm256_loadu_ps(rj + 16),
+                 r3 = _mm256_loadu_ps(rj + 24);
+    for (int h = 0; h < s.heads; h += 4) {
+      __m256 acc[4];
+      for (int g = 0; g < 4; ++g) {
+        const float* uh = u + (h + g) * 32;
+        acc[g] = _mm256_mul_ps(_mm256_loadu_ps(uh), r0);
+        acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(uh + 8), r1, acc[g]);
+        acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(uh + 16), r2, acc[g]);
+        acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(uh + 24), r3, acc[g]);
+      }
+      alignas(16) float lanes[4];
+      _mm_store_ps(lanes, sum4(acc[0], acc[1], acc[2], acc[3]));
+      for (int g = 0; g < 4; ++g) scores[(h + g) * stride + j] += lanes[g];
+    }
+  }
+}
+
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+                              float* out) {
+  if (s.heads % 4 != 0 || s.r != 32 || kernels_forced_plain())
+    return kernel_weighted_relation_plain(s, a, rel, m, stride, out);
+  for (int h = 0; h < s.heads; h += 2) {
+    __m256 acc[8];
+    for (int i = 0; i < 8; ++i) acc[i] = _mm256_setzero_ps();
+    for (int j = 0; j < m; ++j) {
+      const float* rj = rel + j * 32;
+      for (int g = 0; g < 2; ++g) {
+        const __m256 w = _mm256_broadcast_ss(a + (h + g) * stride + j);
+        for (int i = 0; i < 4; ++i) acc[g * 4 + i] = _mm256_fmadd_ps(w, _mm256_loadu_ps(rj + 8 * i), acc[g * 4 + i]);
+      }
+    }
+    for (int g = 0; g < 2; ++g)
+      for (int i = 0; i < 4; ++i) _mm256_storeu_ps(out + (h + g) * 32 + 8 * i, acc[g * 4 + i]);
+  }
+}
+
+namespace {
+
+inline float hmax(__m256 x) {
+  __m128 y = _mm_max_ps(_mm256_castps256_ps128(x), _mm256_extractf128_ps(x, 1));
+  y = _mm_max_ps(y, _mm_movehl_ps(y, y));
+  y = _mm_max_ss(y, _mm_movehdup_ps(y));
+  return _mm_cvtss_f32(y);
+}
+
+inline float hsum(__m256 x) {
+  __m128 y = _mm_add_ps(_mm256_castps256_ps128(x), _mm256_extractf128_ps(x, 1));
+  y = _mm_add_ps(y, _mm_movehl_ps(y, y));
+  y = _mm_add_ss(y, _mm_movehdup_ps(y));
+  return _mm_cvtss_f32(y);
+}
+
+}  // namespace
+
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
+  if (kernels_forced_plain()) return kernel_softmax_rows_plain(s, rows, cols, stride, scale);
+  // Whole vectors, the last one masked (its empty lanes read as -inf, whose exp is 0): no scalar exp for a tail.
+  const __m256 lowest = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
+  const int full = cols / 8;
+  const int rest = cols % 8;
+  alignas(32) static constexpr int kLanes[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
+  const __m256i tail = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kLanes + 8 - rest));
+  const __m256 tail_f = _mm256_castsi256_ps(tail);
+  auto load_tail = [&](const float* p) { return _mm256_blendv_ps(lowest, _mm256_maskload_ps(p, tail), tail_f); };
+  for (int i = 0; i < rows; ++i) {
+    float* row = s + static_cast<size_t>(i) * stride;
+    __m256 top = lowest;
+    for (int b = 0; b < full; ++b) top = _mm256_max_ps(top, _mm256_loadu_ps(row + 8 * b));
+    if (rest) top = _mm256_max_ps(top, load_tail(row + 8 * full));
+    const __m256 shift = _mm256_set1_ps(hmax(top));
+    const __m256 k = _mm256_set1_ps(scale);
+    __m256 sum = _mm256_setzero_ps();
+    auto exp_at = [&](__m256 x) { return Eigen::internal::pexp(_mm256_mul_ps(_mm256_sub_ps(x, shift), k)); };
+    for (int b = 0; b < full; ++b) {
+      const __m256 e = exp_at(_mm256_loadu_ps(row + 8 * b));
+      _mm256_storeu_ps(row + 8 * b, e);
+      sum = _mm256_add_ps(sum, e);
+    }
+    if (rest) {
+      const __m256 e = _mm256_and_ps(exp_at(load_tail(row + 8 * full)), tail_f);  // exp(-inf) may not be 0 here
+      _mm256_maskstore_ps(row + 8 * full, tail, e);
+      sum = _mm256_add_ps(sum, e);
+    }
+    const __m256 inv = _mm256_set1_ps(1.0f / hsum(sum));
+    for (int b = 0; b < full; ++b) _mm256_storeu_ps(row + 8 * b, _mm256_mul_ps(_mm256_loadu_ps(row + 8 * b), inv));
+    if (rest)
+      _mm256_maskstore_ps(row + 8 * full, tail, _mm256_mul_ps(_mm256_maskload_ps(row + 8 * full, tail), inv));
+  }
+}
+
+#else  // neither AVX-512 nor AVX2 with FMA: the plain forms
 
 void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                        float* scores) {

@@ -1,10 +1,12 @@
 // The inner loops of attention for one query over its own key set, all heads at once. Each has a plain C++ form
-// and, when the build targets AVX-512, a register-blocked form; both compute the same sums (tests compare them).
+// and, when the build targets AVX-512 (or AVX2 with FMA), a register-blocked form; both compute the same sums (tests compare them).
 //
 // Layouts: a key/value row is d = heads * dh floats (head h at h * dh); `keys` names rows of a row-major matrix;
 // scores and weights are heads x m, row-major; relation embeddings are m x r (row j for key j, read in order, which
 // the hardware prefetcher follows).
 #pragma once
+
+#include <cstdint>
 
 namespace ss {
 
@@ -27,6 +29,20 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
 // Each of `rows` rows of s (`cols` floats, rows `stride` apart) becomes softmax(scale * row), in place (scale > 0).
 void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale);
 
+// Keys and values stored as IEEE half floats (binary16, as uint16_t), converted to float for the math: the same
+// sums as the forms above on the converted rows.
+void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
+                           float* scores);
+void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
+                                float* out);
+// Rounds n floats to half floats (nearest, ties to even; beyond the half range: +-65504) and back.
+void floats_to_halves(const float* x, int n, uint16_t* out);
+void halves_to_floats(const uint16_t* x, int n, float* out);
+
+// True when the environment sets SCENESTREAMER_AB_PLAIN_KERNELS (read once): the AVX2 forms then defer to the plain
+// ones. For interleaved A/B timing in one binary; not a setting for production.
+bool kernels_forced_plain();
+
 // The plain forms (what the fast forms must equal up to float rounding); exposed for the tests.
 void kernel_key_scores_plain(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                              float* scores);
@@ -37,5 +53,11 @@ void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const
 void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
                                     float* out);
 void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale);
+void kernel_key_scores_f16_plain(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
+                                 float* scores);
+void kernel_weighted_values_f16_plain(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys,
+                                      int m, float* out);
+float half_to_float(uint16_t h);
+uint16_t float_to_half(float x);
 
 }  // namespace ss

@@ -1,6 +1,8 @@
 // The decoder: token embeddings, which keys each token reads, and the layer stack over the KV cache.
 #include <algorithm>
+#include <cstdlib>
 #include <map>
+#include <optional>
 
 #include "engine/model/key_select.h"
 #include "engine/model/model.h"
@@ -9,7 +11,7 @@ namespace ss {
 
 KvCache Model::new_cache() const {
   KvCache cache;
-  cache.init(config().decoder_layers, config().d_model);
+  cache.init(config().decoder_layers, config().d_model, options_.kv_precision);
   return cache;
 }
 
@@ -68,6 +70,29 @@ Mat Model::embed(std::span<const DecoderToken> tokens) const {
 namespace {
 
 Anchor anchor_of(const DecoderToken& t) { return Anchor(t.has_pose, t.pose, t.step); }
+
+// SCENESTREAMER_AB_NO_KEPT_ROWS (read once) turns the kept rows off: for interleaved A/B timing in one binary.
+bool kept_rows_off() {
+  static const bool off = [] {
+    const char* e = std::getenv("SCENESTREAMER_AB_NO_KEPT_ROWS");
+    return e != nullptr && *e != 0 && *e != '0';
+  }();
+  return off;
+}
+
+// The embedding inputs of a position-less token that its first layer's cross-attention depends on (Model::embed),
+// or nothing for tokens that do not take the kept path.
+std::optional<PoselessKey> poseless_key(const DecoderToken& t) {
+  if (t.has_pose || kept_rows_off()) return std::nullopt;
+  const auto kind = static_cast<uint8_t>(t.kind);
+  switch (t.kind) {
+    case TokenKind::sos:
+    case TokenKind::eos: return PoselessKey{kind, 0, 0, 0};
+    case TokenKind::soa: return PoselessKey{kind, t.intra_index, t.agent_slot, 0};
+    case TokenKind::type: return PoselessKey{kind, t.intra_index, t.agent_slot, t.agent_type};
+    default: return std::nullopt;
+  }
+}
 
 }  // namespace
 
@@ -166,26 +191,62 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
   count_work(cache.work, self, cross, outputs);
 
   Mat x = embed(tokens);
+  // Position-less tokens take their first layer's cross-attention from the cache's kept rows (computed here, one
+  // token at a time, when missing); the other tokens run it as a batch.
+  std::vector<int> computed;  // rows whose first cross-attention runs here
+  const int newest = tokens.back().step;
+  for (int i = 0; i < n; ++i) {
+    const auto key = poseless_key(tokens[i]);
+    if (!key) {
+      computed.push_back(i);
+      continue;
+    }
+    PoselessEntry& e = cache.poseless[*key];
+    e.last_step = std::max(e.last_step, tokens[i].step);
+    if (e.x.size() != 0) {  // kept: this layer's cross-attention is not run (nor counted)
+      ++cache.work.kept_cross_queries;
+      cache.work.key_reads -= static_cast<int64_t>(cross.per_query[i]->keys.size());
+      cache.work.posed_key_reads -= cross.per_query[i]->posed();
+    } else {
+      const DecoderLayerParams& L = decoder_layers_[0];
+      const Mat xi = x.row(i);
+      const QueryKeys* one[] = {cross.per_query[i]};
+      e.x = xi + relative_attention(layer_norm(xi, L.cross_norm), L.cross, c.heads,
+                                    MatMap(map.cross_keys[0].data(), map.size(), c.d_model),
+                                    MatMap(map.cross_values[0].data(), map.size(), c.d_model), one);
+    }
+    x.row(i) = e.x;
+  }
+  // A step's tokens may come in several calls (lights, then the agent-state group, ...): rows read at the step before
+  // stay until the step after, so a call that reads none of them (lights) does not drop them.
+  std::erase_if(cache.poseless, [&](const auto& e) { return e.second.last_step < newest - 1; });
+  std::vector<const QueryKeys*> cross_computed;
+  for (int i : computed) cross_computed.push_back(cross.per_query[i]);
+
   for (int l = 0; l < c.decoder_layers; ++l) {
     const DecoderLayerParams& L = decoder_layers_[l];
-    const Mat xc = layer_norm(x, L.cross_norm);
-    x += relative_attention(xc, L.cross, c.heads, MatMap(map.cross_keys[l].data(), map.size(), c.d_model),
-                            MatMap(map.cross_values[l].data(), map.size(), c.d_model), cross.per_query);
+    const MatMap map_keys(map.cross_keys[l].data(), map.size(), c.d_model);
+    const MatMap map_values(map.cross_values[l].data(), map.size(), c.d_model);
+    if (l > 0 || static_cast<int>(computed.size()) == n) {
+      x += relative_attention(layer_norm(x, L.cross_norm), L.cross, c.heads, map_keys, map_values, cross.per_query);
+    } else if (!computed.empty()) {
+      const Mat xc = layer_norm(x(computed, Eigen::all), L.cross_norm);
+      x(computed, Eigen::all) += relative_attention(xc, L.cross, c.heads, map_keys, map_values, cross_computed);
+    }
     const Mat xs = layer_norm(x, L.self_norm);
     const Mat k = linear(xs, L.self.key), v = linear(xs, L.self.value);
-    for (int i = 0; i < n; ++i) {
-      const size_t at = static_cast<size_t>(cache.row(cache.size() + i)) * c.d_model;
-      std::copy_n(k.row(i).data(), c.d_model, cache.k[l].data() + at);
-      std::copy_n(v.row(i).data(), c.d_model, cache.v[l].data() + at);
-    }
-    const MatMap keys(cache.k[l].data(), cache.capacity, c.d_model);
-    const MatMap values(cache.v[l].data(), cache.capacity, c.d_model);
+    cache.write_keys(l, cache.size(), k.data(), n);
+    cache.write_values(l, cache.size(), v.data(), n);
+    const KeyValueRows kv = cache.half()
+                                ? KeyValueRows(cache.kh[l].data(), cache.vh[l].data(), cache.capacity, c.d_model)
+                                : KeyValueRows(MatMap(cache.k[l].data(), cache.capacity, c.d_model),
+                                               MatMap(cache.v[l].data(), cache.capacity, c.d_model));
     if (l + 1 == c.decoder_layers) {
       // Every token's keys and values are in the cache now; what follows only shapes the outputs asked for.
       x = x(outputs, Eigen::all).eval();
-      x += relative_attention(xs(outputs, Eigen::all), L.self, c.heads, keys, values, self_out);
+      x += relative_attention(xs(outputs, Eigen::all), L.self, c.heads, kv, self_out);
     } else {
-      x += relative_attention(xs, L.self, c.heads, keys, values, self.per_query);
+      x += relative_attention(xs, L.self, c.heads, kv, self.per_query);
     }
     Mat f = linear(layer_norm(x, L.ffn_norm), L.ffn1);
     relu_inplace(f);
@@ -226,8 +287,12 @@ double Model::decode_flops(const DecodeWork& w) const {
   // rows also u.h and a h (2 heads r). Per relation row: the MLP (7 r + r^2).
   const double token_layer = 3 * d * d + 2 * d * r + 2 * d * d;
   const double query_layer = 3 * d * d + 2 * d * r + 2 * d * c.ffn_dim();
-  const double macs = w.tokens * layers * token_layer + w.query_layers * query_layer + w.key_reads * 2 * d +
-                      w.posed_key_reads * 2 * c.heads * r + w.relation_rows * (kRelationFeatures * r + r * r);
+  // Cross-attention queries taken from kept rows (position-less tokens' first layer) did no query-side work; their key
+  // reads were not counted (decode).
+  const double kept_query = 3 * d * d + 2 * d * r;
+  const double macs = w.tokens * layers * token_layer - w.kept_cross_queries * kept_query +
+                      w.query_layers * query_layer + w.key_reads * 2 * d + w.posed_key_reads * 2 * c.heads * r +
+                      w.relation_rows * (kRelationFeatures * r + r * r);
   return 2 * macs;
 }
 

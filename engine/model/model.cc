@@ -2,13 +2,29 @@
 #include "engine/model/model.h"
 
 #include <cmath>
+#include <cstdlib>
 
 #include "absl/strings/str_cat.h"
 #include "engine/model/key_select.h"
 
 namespace ss {
 
-Model::Model(Weights w) : weights_(std::move(w)) {
+KvPrecision ModelOptions::default_kv_precision() {
+  const char* env = std::getenv("SCENESTREAMER_KV_PRECISION");
+  if (env == nullptr || *env == 0) return KvPrecision::fp32;
+  auto p = kv_precision_by_name(env);
+  return p.ok() ? *p : KvPrecision::fp32;
+}
+
+absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name) {
+  if (name == "fp32") return KvPrecision::fp32;
+  if (name == "fp16") return KvPrecision::fp16;
+  return absl::InvalidArgumentError(absl::StrCat("unknown KV precision '", name, "' (use fp32 or fp16)"));
+}
+
+const char* kv_precision_name(KvPrecision p) { return p == KvPrecision::fp16 ? "fp16" : "fp32"; }
+
+Model::Model(Weights w, ModelOptions options) : weights_(std::move(w)), options_(options) {
   const ModelConfig& c = weights_.config;
   limit_ = {c.knn_k, c.knn_radius, c.knn_always};
   poly_fc1_ = lin("encoder.polyline.fc1", false);
@@ -68,7 +84,7 @@ Model::Model(Weights w) : weights_(std::move(w)) {
   rs_output_ = lin("head.relative_state.output");
 }
 
-absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights) {
+absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, ModelOptions options) {
   if (auto st = validate_config(weights.config); !st.ok()) return st;
   // The weight loader checked every tensor against model_parameter_specs; a Weights built in memory is checked here.
   for (const TensorSpec& spec : model_parameter_specs(weights.config)) {
@@ -77,7 +93,7 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights) {
     if (it->second.shape != spec.shape)
       return absl::InvalidArgumentError(absl::StrCat("weights tensor ", spec.name, " has the wrong shape"));
   }
-  return std::shared_ptr<const Model>(new Model(std::move(weights)));
+  return std::shared_ptr<const Model>(new Model(std::move(weights), options));
 }
 
 LinearParams Model::lin(const std::string& name, bool bias) const {

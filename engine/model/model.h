@@ -57,11 +57,25 @@ struct RsBlockParams {
   LinearParams ffn1, ffn2;
 };
 
+// How the model runs (not what it computes): the KV caches' storage.
+struct ModelOptions {
+  // fp16 halves a session's keys and values (and the bytes its attention gathers); the math stays fp32.
+  KvPrecision kv_precision = default_kv_precision();
+
+  // The environment's SCENESTREAMER_KV_PRECISION (fp32 or fp16), else fp32. Lets every program that loads a model
+  // (server, tools) choose without a flag of its own.
+  static KvPrecision default_kv_precision();
+};
+// "fp32" / "fp16"; INVALID_ARGUMENT otherwise.
+absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name);
+const char* kv_precision_name(KvPrecision p);
+
 class Model {
  public:
-  static absl::StatusOr<std::shared_ptr<const Model>> create(Weights weights);
+  static absl::StatusOr<std::shared_ptr<const Model>> create(Weights weights, ModelOptions options = {});
 
   const ModelConfig& config() const { return weights_.config; }
+  const ModelOptions& options() const { return options_; }
   const Weights& weights() const { return weights_; }
 
   // Encodes a map (segments nearest the focus first, at most max_map_segments). FAILED_PRECONDITION when empty.
@@ -95,7 +109,7 @@ class Model {
   Mat embed(std::span<const DecoderToken> tokens) const;
 
  private:
-  explicit Model(Weights w);
+  Model(Weights w, ModelOptions options);
   LinearParams lin(const std::string& name, bool bias = true) const;
   NormParams norm(const std::string& name) const;
   AttentionParams attn(const std::string& name) const;
@@ -115,6 +129,7 @@ class Model {
   void count_work(DecodeWork& w, const KeySets& self, const KeySets& cross, std::span<const int> outputs) const;
 
   Weights weights_;
+  ModelOptions options_;
   NeighbourLimit limit_;
   LinearParams poly_fc1_, poly_fc2_, poly_fc3_, poly_fc4_;
   NormParams poly_norm1_, poly_norm2_, encoder_final_norm_, decoder_final_norm_;

@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "engine/geometry/limits.h"
 #include "engine/map/focus.h"
+#include "engine/sim/events.h"
 #include "engine/sim/sampling.h"
 #include "engine/sim/tick.h"
 #include "engine/sim/token_builders.h"
@@ -380,6 +381,18 @@ absl::Status Session::check_controls(const std::vector<ControlInput>& controls) 
 }
 
 absl::StatusOr<StepResult> Session::tick(const std::vector<ControlInput>& controls) {
+  // The events are measured from the tick before this one (a stop line crossed, progress along the lane).
+  const bool any_controlled = std::any_of(agents_.begin(), agents_.end(), [](const Agent& a) { return a.controlled; });
+  std::optional<StepResult> before;
+  if (any_controlled) before = tick_view();
+  auto r = advance_tick(controls);
+  if (!r.ok() || !any_controlled) return r;
+  if (!event_map_) event_map_ = std::make_shared<const EventMap>(event_map_from_scenario(*scenario_));
+  r->events = tick_events(*event_map_, *before, *r);
+  return r;
+}
+
+absl::StatusOr<StepResult> Session::advance_tick(const std::vector<ControlInput>& controls) {
   // Check everything first: a bad input leaves the session as it was.
   if (auto st = check_controls(controls); !st.ok()) return st;
   if (options_.tick_hz == 2) {

@@ -22,6 +22,8 @@
 
 namespace ss {
 
+struct EventMap;
+
 class Session {
  public:
   struct Probe;
@@ -41,7 +43,12 @@ class Session {
   // background agents along the control they sampled (tick.h), and the fifth tick is the model step, each controlled
   // agent taking its latest pose since the last step. Every pose is checked when it arrives. On error the session is
   // unchanged.
+  // The result carries each controlled agent's events since the previous tick (engine/sim/events.h).
   absl::StatusOr<StepResult> tick(const std::vector<ControlInput>& controls);
+  // The map the events are measured on. Hosts share one per bundled scenario between its sessions; a session given
+  // none builds its own at its first tick with a controlled agent. Forks share their source's.
+  void set_event_map(std::shared_ptr<const EventMap> m) { event_map_ = std::move(m); }
+  const EventMap* event_map() const { return event_map_.get(); }
   // What the current tick shows (current() at a step, else the sub-tick view with the pushed poses).
   StepResult tick_view() const;
   int64_t tick_index() const { return tick_; }  // ticks since the session started
@@ -134,6 +141,8 @@ class Session {
   bool sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order, int64_t* new_id);
   void sample_motions(const Mat& h);  // h: the agents' motion-token outputs, in agent order
   int allocate_slot();
+  // tick() without the events.
+  absl::StatusOr<StepResult> advance_tick(const std::vector<ControlInput>& controls);
   absl::Status check_state(const StepState& s, const std::string& what) const;
   // The one rule for a pose from a client: a controlled agent, given once, finite, on the map's scale, at most
   // kMaxStepDistance from the agent's pose at the last model step, speed in 0..100 m/s.
@@ -143,6 +152,7 @@ class Session {
   std::shared_ptr<const Model> model_;
   std::shared_ptr<const Scenario> scenario_;
   std::shared_ptr<const MapContext> map_;
+  std::shared_ptr<const EventMap> event_map_;  // read-only, shared
   SessionOptions options_;
   Rng rng_;
   int step_ = 0;

@@ -20,8 +20,10 @@ const char* session_mode_name(SessionMode m);
 struct SessionOptions {
   SessionMode mode = SessionMode::motion;
   uint64_t seed = 0;
-  double top_p = 0.95;         // motion tokens (nucleus sampling)
-  double temperature = 1.0;    // every sampled token
+  // The defaults suit the trained default model (models/MODEL_CARD.md: a sweep on val scenarios cut collision and
+  // offroad rates against 0.95 and 1.0, realism within noise of the best).
+  double top_p = 0.8;          // motion tokens (nucleus sampling)
+  double temperature = 0.7;    // every sampled token
   int max_agents = 128;        // the cap on agents alive at once (at most the model's agent slots)
   double roi_radius = 100.0;   // metres around the first controlled agent (else the SDC, else the scenario's focus):
                                // agents beyond it retire, new ones spawn within
@@ -48,12 +50,39 @@ struct LightView {
   Pose stop_point;        // stop point, heading of its lane
 };
 
+// Where an agent is on its lane: the nearest lane centre whose direction is within 90 degrees of the agent's heading.
+struct LanePosition {
+  int64_t lane_id = -1;          // -1: no lane within kLaneMaxDistance (engine/sim/events.h)
+  double s = 0;                  // metres along the lane from its first point to the agent's projection
+  double offset = 0;             // signed lateral distance of the centre, + left of the lane direction
+  double heading_error = 0;      // agent heading minus lane direction, [-pi, pi)
+  Vec2 direction;                // unit lane direction at the projection
+};
+
+// What happened to one controlled agent at a tick (the rules are in engine/sim/events.h). RL clients build rewards
+// and terminations from these, so the rules live in the engine once instead of being guessed by every client.
+struct AgentEvents {
+  int64_t agent_id = 0;
+  std::vector<int64_t> overlapping;  // ids of agents whose boxes overlap this agent's box, ascending
+  double road_edge_distance = 0;     // the most off-road box corner's signed distance to the road edge (+: off);
+                                     // NaN when the map has no road edge
+  bool off_road = false;             // road_edge_distance > 0
+  bool ran_red_light = false;        // the centre crossed a red light's stop line since the previous tick
+  int64_t red_light_lane = -1;       // that light's lane
+  LanePosition lane;
+  double progress = 0;               // the centre's displacement since the previous tick along its lane's
+                                     // direction (at the new position, else the old); 0 off every lane
+};
+
 struct StepResult {
   int step = 0;                 // model step (2 Hz) since the scenario's first frame
   double time = 0;              // seconds: step * 0.5
   std::vector<AgentView> agents;
   std::vector<LightView> lights;
   std::vector<int64_t> left;    // agents retired at this step
+  // A tick's result only (Session::tick): each controlled agent's events, measured from the tick before. Empty in
+  // views (Session::current, tick_view) and in Session::step's results (the offline tools do not need them).
+  std::vector<AgentEvents> events;
 };
 
 // A controlled agent's pose at the next tick.

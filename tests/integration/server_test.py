@@ -301,7 +301,10 @@ class SnapshotTest(unittest.TestCase):
         try:
             self.assertIn("restored 1 sessions", srv2.output())
             now = srv2.stub.GetSession(pb.GetSessionRequest(session_id="survivor")).current
-            self.assertEqual(now.SerializeToString(), before[-1].SerializeToString())
+            last = pb.Tick()
+            last.CopyFrom(before[-1])
+            del last.events[:]  # StepScene's ticks carry events; GetSession's do not
+            self.assertEqual(now.SerializeToString(), last.SerializeToString())
             after = rollout(srv2.stub, "survivor", now, 2)
             self.assertEqual([t.SerializeToString() for t in before + after], expected)
         finally:

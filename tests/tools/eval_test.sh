@@ -44,6 +44,13 @@ for name, r in runs.items():
     assert ("mmd" in r) == (name == "full"), name
 assert set(runs["full"]["mmd"]) == {"strict", "relaxed"}
 assert set(runs["full"]["mmd"]["strict"]) == {"position", "heading", "size", "velocity"}
+# Full mode: the agents placed at the first step against the log's, overall and per scenario.
+p = runs["full"]["placed_agents"]
+assert p["log"]["agents"] > 0 and p["generated_per_rollout"]["agents"] >= 0, p
+assert p["log"]["vehicles"] <= p["log"]["agents"] and 0 <= p["scenarios_count_within_30pct"] <= p["scenarios_with_log_agents"] <= 3, p
+assert all("placed_agents" in s for s in runs["full"]["per_scenario"])
+assert all("placed_agents" not in r for name, r in runs.items() if name != "full")
+assert runs["motion"]["sampling"] == {"top_p": 0.8, "temperature": 0.7} and "sampling" not in runs["cv"]
 assert runs["motion"]["mode"] == "motion" and runs["cv"]["mode"] is None
 assert runs["log"]["realism_meta"] > runs["cv"]["realism_meta"], (runs["log"]["realism_meta"], runs["cv"]["realism_meta"])
 assert runs["log"]["min_ade"] == 0 and runs["cv"]["min_ade"] > 0
@@ -191,6 +198,15 @@ if "$bin" eval --data "$1" --baseline cv --sdc ego --json "$tmp/x.json" 2> "$tmp
 grep -q "ego" "$tmp/err"
 if "$bin" eval --data "$1" --baseline fancy --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
 grep -q "fancy" "$tmp/err"
+# Sampling flags: the model's only, in range; reported in the JSON.
+"$bin" eval --data "$1" --model "$tmp/w.safetensors" --rollouts 1 --top-p 0.5 --temperature 0.7 --json "$tmp/t.json" > /dev/null 2>&1
+grep -q '"top_p": 0.5' "$tmp/t.json" && grep -q '"temperature": 0.7' "$tmp/t.json"
+if "$bin" eval --data "$1" --model "$tmp/w.safetensors" --top-p 1.5 --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
+grep -q "top-p" "$tmp/err"
+if "$bin" eval --data "$1" --model "$tmp/w.safetensors" --temperature 0 --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
+grep -q "temperature" "$tmp/err"
+if "$bin" eval --data "$1" --baseline cv --temperature 0.5 --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
+grep -q "temperature" "$tmp/err"
 if "$bin" eval --data "$1" --baseline cv --rollouts 0 --json "$tmp/x.json" 2> "$tmp/err"; then exit 1; fi
 grep -q "rollouts" "$tmp/err"
 if "$bin" eval --data "$1" --baseline cv --json "$tmp/x.json" --bogus 2> "$tmp/err"; then exit 1; fi

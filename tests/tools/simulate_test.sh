@@ -1,6 +1,7 @@
 #!/bin/sh
 # scenestreamer simulate, as a user runs it: random small weights, a real scenario, each mode, both --sdc rules, a
-# 20 s scenario to its end; the rollout is a WOMD file that inspect and render read back.
+# 20 s scenario to its end; the rollout is a complete WOMD scenario (the log up to its current frame, the rollout
+# after it) that inspect, render, convert and protoc-generated Python classes read back.
 # usage: simulate_test.sh SCENESTREAMER DATA_DIR
 set -eu
 bin=$1
@@ -17,8 +18,8 @@ for mode in motion full densify; do
   /usr/bin/python3 - "$tmp/$mode.json" "$mode" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
-assert r["frames"] == 81, r["frames"]             # 16 steps after the start: 17 model steps at 10 Hz
-assert r["scenario_id"] == "637f20cafde22ff8-rollout", r["scenario_id"]
+assert r["frames"] == 91, r["frames"]             # the log's 11 frames, then 16 steps at 10 Hz
+assert r["scenario_id"] == "637f20cafde22ff8", r["scenario_id"]
 assert r["tracks"]["total"] >= 1, r["tracks"]
 assert r["map_features"]["total"] == 301
 assert r["sdc_track_index"] >= 0
@@ -35,10 +36,63 @@ grep -q -- "--sdc model" "$tmp/free.log"
 /usr/bin/python3 - "$tmp" <<'PY'
 import json, sys
 free = json.load(open(sys.argv[1] + "/free.json"))
-assert free["frames"] == 81 and free["sdc_track_index"] >= 0, (free["frames"], free["sdc_track_index"])
+assert free["frames"] == 91 and free["sdc_track_index"] >= 0, (free["frames"], free["sdc_track_index"])
 long = json.load(open(sys.argv[1] + "/long.json"))
-assert long["frames"] == 191 and long["sdc_track_index"] >= 0, (long["frames"], long["sdc_track_index"])
+assert long["frames"] == 201 and long["sdc_track_index"] >= 0, (long["frames"], long["sdc_track_index"])  # 11 + 38 * 5
 PY
+
+# Round trip, read by another tool: protoc-generated Python classes of proto/womd and our own TFRecord framing
+# reader see, up to the current frame, the log's frames, ids, current index and history; z after it is each
+# track's last logged z; agents the model created (densify) are new tracks with ids the log does not use.
+/usr/bin/python3 - "$tmp" "$scenario" "$(dirname "$0")" <<'PY'
+import math, sys
+tmp, log_path, here = sys.argv[1:4]
+sys.path.insert(0, here)
+import womd_files
+scenario_pb2, _ = womd_files.classes()
+(log,) = womd_files.scenarios(log_path, scenario_pb2)
+now = log.current_time_index
+assert now == 10
+for name in ["motion", "densify", "free"]:
+    (r,) = womd_files.scenarios(f"{tmp}/{name}.tfrecord", scenario_pb2)
+    assert r.scenario_id == log.scenario_id and r.current_time_index == now, (r.scenario_id, r.current_time_index)
+    assert r.sdc_track_index == log.sdc_track_index
+    assert list(r.tracks_to_predict) == list(log.tracks_to_predict)
+    assert list(r.objects_of_interest) == list(log.objects_of_interest)
+    assert len(r.map_features) == len(log.map_features)
+    assert len(r.timestamps_seconds) == 91
+    assert list(r.timestamps_seconds[:now + 1]) == list(log.timestamps_seconds[:now + 1])
+    for f in range(now + 1, 91):
+        assert abs(r.timestamps_seconds[f] - r.timestamps_seconds[f - 1] - 0.1) < 1e-9
+    log_ids = [t.id for t in log.tracks]
+    assert [t.id for t in r.tracks[:len(log.tracks)]] == log_ids
+    for t, lt in zip(r.tracks, log.tracks):
+        assert t.object_type == lt.object_type and len(t.states) == 91
+        for f in range(now + 1):
+            assert t.states[f] == lt.states[f], (name, t.id, f)
+        z = [s.center_z for s in lt.states[:now + 1] if s.valid]
+        for s in t.states[now + 1:]:
+            if s.valid:
+                assert s.center_z == z[-1], (name, t.id, s.center_z, z[-1])
+                assert s.center_z != 0
+    new = r.tracks[len(log.tracks):]
+    assert not set(t.id for t in new) & set(log_ids)
+    assert len(set(t.id for t in r.tracks)) == len(r.tracks)
+    for t in new:
+        assert not any(s.valid for s in t.states[:now + 1])
+        assert any(s.valid for s in t.states[now + 1:])
+    if name == "densify":
+        assert new, "densify created no agent"
+    sdc = r.tracks[r.sdc_track_index]
+    assert all(s.valid for s in sdc.states[now:]), name  # the SDC is driven over the whole rollout
+    assert len(r.dynamic_map_states) == 91
+    for f in range(now + 1):
+        assert r.dynamic_map_states[f] == log.dynamic_map_states[f]
+    assert all(len(d.lane_states) > 0 for d in r.dynamic_map_states[now + 1:])  # the model's lights
+PY
+# The project's reader reads it back whole: converting it again gives the same bytes.
+"$bin" convert "$tmp/motion.tfrecord" --out "$tmp/motion_again.tfrecord" > /dev/null
+cmp "$tmp/motion.tfrecord" "$tmp/motion_again.tfrecord"
 if cmp -s "$tmp/free.tfrecord" "$tmp/motion.tfrecord"; then echo "--sdc model and --sdc log gave the same rollout"; exit 1; fi
 # The same seed gives the same file; another seed another.
 "$bin" simulate --scenario "$scenario" --model "$tmp/w.safetensors" --mode full --sdc log --steps 16 --seed 1 \

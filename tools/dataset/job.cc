@@ -5,7 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "engine/base/rng.h"
+#include "engine/dataset/dataset_rng.h"
 #include "engine/dataset/sumo_events.h"
 #include "engine/dataset/sumo_fcd.h"
 #include "engine/dataset/sumo_map.h"
@@ -85,7 +85,7 @@ absl::StatusOr<JobResult> run_attempt(const JobSpec& spec, int attempt, const Su
   }
   JobContext job(tools, dir->path(), label);
 
-  Rng network_rng(mix_seed(spec.seed, 1)), demand_rng(mix_seed(spec.seed, 2));
+  Rng network_rng = dataset_rng(mix_seed(spec.seed, 1)), demand_rng = dataset_rng(mix_seed(spec.seed, 2));
   auto net = build_network(spec.network, network_rng, r.sumo_seed, job);
   if (!net.ok()) return net.status();
   r.network_description = net->description;

@@ -15,7 +15,8 @@ json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 std::string policy_label(const EvalRunInfo& run) {
   if (run.policy != EvalPolicy::model) return eval_policy_name(run.policy);
-  return absl::StrFormat("model (%s mode)", session_mode_name(run.mode));
+  return absl::StrFormat("model (%s mode, top-p %g, temperature %g)", session_mode_name(run.mode), run.top_p,
+                         run.temperature);
 }
 
 void put_realism(json& j, const RealismScores& r) {
@@ -38,6 +39,17 @@ void put_motion(json& j, const MotionMetrics& m) {
   j["fde_min"] = number(m.fde_min);
   j["add"] = number(m.add);
   j["fdd"] = number(m.fdd);
+}
+
+double offroad_share(const PlacedAgents& p) {
+  return p.vehicles ? static_cast<double>(p.offroad_vehicles) / p.vehicles : std::nan("");
+}
+
+// Counts divided by `rollouts` (the generated side is summed over them), and the offroad share of the vehicles.
+json placed_json(const PlacedAgents& p, int rollouts) {
+  const double k = std::max(rollouts, 1);
+  return {{"agents", p.agents / k}, {"vehicles", p.vehicles / k}, {"offroad_vehicles", p.offroad_vehicles / k},
+          {"offroad_rate", number(offroad_share(p))}};
 }
 
 json mmd_json(const InitialStateMmd& m) {
@@ -79,6 +91,7 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
   j["sdc"] = sdc_rule_name(run.sdc);
   j["sdc_rule"] = sdc_rule_text(run.sdc);
   if (!run.model_path.empty()) j["model"] = run.model_path;
+  if (run.policy == EvalPolicy::model) j["sampling"] = {{"top_p", run.top_p}, {"temperature", run.temperature}};
   put_realism(j, d.realism);
   std::vector<RealismScores> windows;
   std::vector<int> window_scenarios;
@@ -107,6 +120,11 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
                                   {"tracks_matched", d.matched},
                                   {"match_distance_m", number(d.match_distance)}});
   }
+  if (d.has_mmd)
+    j["placed_agents"] = {{"log", placed_json(d.placed_log, 1)},
+                          {"generated_per_rollout", placed_json(d.placed_generated, run.rollouts)},
+                          {"scenarios_count_within_30pct", d.placed_within_30},
+                          {"scenarios_with_log_agents", d.placed_scenarios}};
   json undefined = json::object();
   for (const auto& [key, n] : d.undefined) undefined[key] = n;
   j["undefined_scenarios"] = undefined;
@@ -129,7 +147,11 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
     o["tracks_to_predict"] = ttp;
     if (run.policy == EvalPolicy::model) o["model_driven_share"] = number(1 - s.filled_share);
     o["windows"] = windows_json(s.windows);
-    if (s.has_mmd) o["mmd"] = {{"strict", mmd_json(s.mmd_strict)}, {"relaxed", mmd_json(s.mmd_relaxed)}};
+    if (s.has_mmd) {
+      o["mmd"] = {{"strict", mmd_json(s.mmd_strict)}, {"relaxed", mmd_json(s.mmd_relaxed)}};
+      o["placed_agents"] = {{"log", placed_json(s.placed_log, 1)},
+                            {"generated_per_rollout", placed_json(s.placed_generated, s.rollouts)}};
+    }
     per.push_back(o);
   }
   j["per_scenario"] = per;
@@ -176,6 +198,14 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
     for (auto [name, m] : {std::pair{"strict", &d.mmd_strict}, std::pair{"relaxed", &d.mmd_relaxed}})
       absl::StrAppendFormat(&t, "  %-16s %9s %9s %9s %9s\n", name, fmt(m->position), fmt(m->heading), fmt(m->size),
                             fmt(m->velocity));
+    const double per_rollout = run.rollouts > 0 ? static_cast<double>(d.placed_generated.agents) / run.rollouts : 0;
+    absl::StrAppendFormat(&t, "\n  agents in the region at the first step: generated %s per rollout, log %d; "
+                          "scenarios within 30 %% of the log's count: %d of %d\n",
+                          fmt(per_rollout, 1), d.placed_log.agents, d.placed_within_30, d.placed_scenarios);
+    absl::StrAppendFormat(&t, "  offroad vehicles at the first step: generated %s (%d of %d), log %s (%d of %d)\n",
+                          fmt(offroad_share(d.placed_generated), 3), d.placed_generated.offroad_vehicles,
+                          d.placed_generated.vehicles, fmt(offroad_share(d.placed_log), 3),
+                          d.placed_log.offroad_vehicles, d.placed_log.vehicles);
   }
   if (run.policy == EvalPolicy::model) {
     absl::StrAppendFormat(&t, "\n  sim-agent frames moved at constant velocity (not driven by the model): %s%%\n",

@@ -16,6 +16,7 @@ struct EvalRunInfo {
   SessionMode mode = SessionMode::motion;
   int rollouts = 0;
   uint64_t seed = 0;
+  double top_p = 0, temperature = 0;  // the model's sampling
   std::string model_path;  // empty for the baselines
 };
 

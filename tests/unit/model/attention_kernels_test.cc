@@ -56,6 +56,29 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
   kernel_relation_scores_plain(s, u.data(), rel.data(), mp, plain.data(), m);
   expect_near(fast, plain, "relation scores (added to the key scores)");
 
+  // Half-float storage: the fast forms against the plain ones on the same halves, and against the float kernels on
+  // the rounded rows.
+  std::vector<uint16_t> kh(k.size()), vh(v.size());
+  floats_to_halves(k.data(), static_cast<int>(k.size()), kh.data());
+  floats_to_halves(v.data(), static_cast<int>(v.size()), vh.data());
+  std::vector<float> k_rounded(k.size()), v_rounded(v.size());
+  halves_to_floats(kh.data(), static_cast<int>(kh.size()), k_rounded.data());
+  halves_to_floats(vh.data(), static_cast<int>(vh.size()), v_rounded.data());
+  {
+    std::vector<float> half_fast(fast.size()), half_plain(fast.size()), rounded(fast.size());
+    kernel_key_scores_f16(s, q.data(), kh.data(), keys.data(), m, half_fast.data());
+    kernel_key_scores_f16_plain(s, q.data(), kh.data(), keys.data(), m, half_plain.data());
+    kernel_key_scores_plain(s, q.data(), k_rounded.data(), keys.data(), m, rounded.data());
+    expect_near(half_fast, half_plain, "key scores from halves");
+    expect_near(half_fast, rounded, "key scores from halves vs rounded floats");
+    std::vector<float> o_fast(s.d(), 0.5f), o_plain(s.d(), 0.5f), o_rounded(s.d(), 0.5f);
+    kernel_weighted_values_f16(s, a.data(), vh.data(), keys.data(), m, o_fast.data());
+    kernel_weighted_values_f16_plain(s, a.data(), vh.data(), keys.data(), m, o_plain.data());
+    kernel_weighted_values_plain(s, a.data(), v_rounded.data(), keys.data(), m, o_rounded.data());
+    expect_near(o_fast, o_plain, "weighted values from halves");
+    expect_near(o_fast, o_rounded, "weighted values from halves vs rounded floats");
+  }
+
   std::vector<float> out_fast(s.d(), 0.5f), out_plain(s.d(), 0.5f);  // the values are added to what is there
   kernel_weighted_values(s, a.data(), v.data(), keys.data(), m, out_fast.data());
   kernel_weighted_values_plain(s, a.data(), v.data(), keys.data(), m, out_plain.data());
@@ -83,6 +106,34 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
     EXPECT_NEAR(sum, 1.0f, 1e-5f) << "head " << h;
     for (int j = m; j < stride; ++j) EXPECT_EQ(soft_fast[h * stride + j], 42.0f) << "padding of head " << h;
   }
+}
+
+// The vector conversion (F16C where the build has it) equals the software one bit for bit, rounds to nearest even,
+// keeps subnormals, and saturates instead of overflowing to infinity.
+TEST(HalfFloats, ConversionRoundsToNearestAndSaturates) {
+  std::mt19937 rng(3);
+  std::vector<float> x = random_floats(1000, rng);
+  for (float& f : x) f *= 100.0f;
+  const std::vector<float> special = {0.0f, -0.0f, 1.0f, -2.5f, 65504.0f, 70000.0f, -1e9f, 6.0e-8f, 3.0e-5f,
+                                      -1.0e-6f, 1.0f + 1.0f / 2048, 1.0f + 3.0f / 2048, 1e-12f};
+  x.insert(x.end(), special.begin(), special.end());
+  const int n = static_cast<int>(x.size());
+  std::vector<uint16_t> fast(n);
+  floats_to_halves(x.data(), n, fast.data());
+  std::vector<float> back(n);
+  halves_to_floats(fast.data(), n, back.data());
+  for (int i = 0; i < n; ++i) {
+    ASSERT_EQ(fast[i], float_to_half(x[i])) << x[i];
+    EXPECT_EQ(back[i], half_to_float(fast[i])) << x[i];
+    const float clamped = std::clamp(x[i], -65504.0f, 65504.0f);
+    // Half precision: 11 significant bits for normal values (relative error <= 2^-11), 2^-24 absolute below 2^-14.
+    EXPECT_LE(std::abs(back[i] - clamped), std::max(std::abs(clamped) / 2048.0f, 3.0e-8f)) << x[i];
+  }
+  EXPECT_EQ(half_to_float(float_to_half(1.0f + 1.0f / 2048)), 1.0f);                 // a tie: to even
+  EXPECT_EQ(half_to_float(float_to_half(1.0f + 3.0f / 2048)), 1.0f + 4.0f / 2048);   // a tie: to even
+  EXPECT_EQ(half_to_float(float_to_half(70000.0f)), 65504.0f);
+  EXPECT_EQ(half_to_float(float_to_half(-1e9f)), -65504.0f);
+  EXPECT_EQ(float_to_half(-0.0f), 0x8000);
 }
 
 INSTANTIATE_TEST_SUITE_P(Shapes, KernelTest,

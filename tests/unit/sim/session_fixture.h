@@ -19,12 +19,12 @@ struct World {
   std::shared_ptr<const MapContext> map;
 };
 
-inline World load_world(const std::string& config = "small", uint64_t weight_seed = 1) {
+inline World load_world(const std::string& config = "small", uint64_t weight_seed = 1, ModelOptions options = {}) {
   World w;
   auto scenarios = read_scenarios(SS_DATA_DIR "/womd/tfrecord/motion_data_one_scenario.tfrecord");
   EXPECT_TRUE(scenarios.ok()) << scenarios.status();
   w.scenario = std::make_shared<const Scenario>((*scenarios)[0]);
-  auto model = Model::create(init_weights(*model_config_by_name(config), weight_seed));
+  auto model = Model::create(init_weights(*model_config_by_name(config), weight_seed), options);
   EXPECT_TRUE(model.ok()) << model.status();
   w.model = *model;
   auto map = w.model->encode_map(nearest_segments(segment_map(*w.scenario), scenario_focus(*w.scenario)));

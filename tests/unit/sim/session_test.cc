@@ -7,6 +7,7 @@
 #include <set>
 #include <thread>
 
+#include "engine/sim/events.h"
 #include "engine/tokens/fidelity.h"
 #include "tests/unit/sim/session_fixture.h"
 
@@ -342,6 +343,49 @@ TEST_F(SessionTest, TenHzPosesPushedBetweenStepsSurviveSaveAndRestore) {
     ASSERT_TRUE(a.ok() && b.ok());
     EXPECT_TRUE(same_result(*a, *b)) << "tick " << k + 1;
   }
+}
+
+// The tick reports each controlled agent's events, measured from the tick before it by events.h's rules, at 2 and
+// 10 Hz; views carry none, a fork shares its source's event map, and a session without controlled agents has none.
+TEST_F(SessionTest, TicksCarryTheControlledAgentsEvents) {
+  const EventMap m = event_map_from_scenario(*w().scenario);
+  const int64_t sdc = w().scenario->tracks[w().scenario->sdc_track_index].id;
+  auto same = [](const AgentEvents& a, const AgentEvents& b) {
+    const bool same_edge = a.road_edge_distance == b.road_edge_distance ||
+                           (std::isnan(a.road_edge_distance) && std::isnan(b.road_edge_distance));
+    return a.agent_id == b.agent_id && a.overlapping == b.overlapping && same_edge && a.off_road == b.off_road &&
+           a.ran_red_light == b.ran_red_light && a.red_light_lane == b.red_light_lane &&
+           a.lane.lane_id == b.lane.lane_id && a.lane.s == b.lane.s && a.lane.offset == b.lane.offset &&
+           a.progress == b.progress;
+  };
+  for (int hz : {2, 10}) {
+    SessionOptions o;
+    o.tick_hz = hz;
+    auto s = start(w(), o);
+    double progress = 0;
+    for (int k = 0; k < 6; ++k) {
+      const StepResult before = s->tick_view();
+      auto r = s->tick({sdc_control(w(), s->step_index() + 1)});  // the SDC along its log
+      ASSERT_TRUE(r.ok()) << r.status();
+      const std::vector<AgentEvents> expected = tick_events(m, before, *r);
+      ASSERT_EQ(r->events.size(), 1u) << hz << " Hz, tick " << k + 1;
+      EXPECT_EQ(r->events[0].agent_id, sdc);
+      EXPECT_TRUE(same(r->events[0], expected[0])) << hz << " Hz, tick " << k + 1;
+      progress += r->events[0].progress;
+    }
+    EXPECT_GT(progress, 0) << hz << " Hz: the SDC follows its log along its lane";
+    EXPECT_TRUE(s->tick_view().events.empty());
+    EXPECT_TRUE(s->current().events.empty());
+    auto copy = s->fork();
+    EXPECT_EQ(copy->event_map(), s->event_map());
+  }
+  SessionOptions none;
+  none.control_sdc = false;
+  auto s = start(w(), none);
+  auto r = s->tick({});
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_TRUE(r->events.empty());
+  EXPECT_EQ(s->event_map(), nullptr);  // not built when no agent is controlled
 }
 
 TEST_F(SessionTest, TenHzPosesAreCheckedWhenTheyArrive) {

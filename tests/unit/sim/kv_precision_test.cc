@@ -1,0 +1,174 @@
+// Sessions whose KV caches store half floats (ModelOptions::kv_precision fp16): the incremental path against a full
+// recompute, against the fp32 path on the same tokens (the stated tolerance), and the determinism guarantees
+// (same seed, any thread count, fork, save/restore) that hold for fp32.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "tests/unit/sim/session_fixture.h"
+
+namespace ss {
+namespace {
+
+using testing::load_world;
+using testing::same_result;
+using testing::sdc_control;
+using testing::start;
+
+ModelOptions fp16() {
+  ModelOptions o;
+  o.kv_precision = KvPrecision::fp16;
+  return o;
+}
+
+std::vector<StepResult> roll(Session& s, const testing::World& w, int steps) {
+  std::vector<StepResult> out;
+  for (int i = 0; i < steps; ++i) {
+    auto r = s.step({sdc_control(w, s.step_index() + 1)});
+    EXPECT_TRUE(r.ok()) << r.status();
+    if (!r.ok()) break;
+    out.push_back(*r);
+  }
+  return out;
+}
+
+bool same_rollout(const std::vector<StepResult>& a, const std::vector<StepResult>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (!same_result(a[i], b[i])) return false;
+  return true;
+}
+
+class Fp16Test : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { world_ = new testing::World(load_world("small", 1, fp16())); }
+  static void TearDownTestSuite() {
+    delete world_;
+    world_ = nullptr;
+  }
+  static const testing::World& w() { return *world_; }
+  static inline testing::World* world_ = nullptr;
+};
+
+TEST_F(Fp16Test, CachesStoreHalfFloats) {
+  KvCache cache = w().model->new_cache();
+  EXPECT_TRUE(cache.half());
+  EXPECT_TRUE(cache.k.empty());
+  EXPECT_EQ(cache.kh.size(), static_cast<size_t>(w().model->config().decoder_layers));
+}
+
+// Incremental decoding in fp16 against a full recompute in fp16 (both round the same keys and values), over a
+// 19-step rollout with agents entering and leaving.
+TEST_F(Fp16Test, IncrementalMatchesFullRecompute) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  o.seed = 11;
+  o.roi_radius = 40;
+  o.max_agents = 24;
+  Session::Probe probe;
+  auto s = Session::create(w().model, w().scenario, w().map, o, &probe);
+  ASSERT_TRUE(s.ok()) << s.status();
+  for (int step = 3; step < 19; ++step) ASSERT_TRUE((*s)->step({sdc_control(w(), step)}).ok());
+  std::vector<DecoderToken> all;
+  for (const auto& b : probe.batches) all.insert(all.end(), b.begin(), b.end());
+  const Mat full = w().model->decode_full(*w().map, all);
+  double max_hidden = 0;
+  size_t row = 0;
+  for (const Mat& inc : probe.outputs) {
+    max_hidden = std::max<double>(max_hidden, (inc - full.middleRows(row, inc.rows())).cwiseAbs().maxCoeff());
+    row += inc.rows();
+  }
+  EXPECT_LT(max_hidden, 1e-4);
+  std::printf("fp16 incremental vs full recompute over %zu tokens: max |hidden diff| %.3g\n", all.size(), max_hidden);
+}
+
+// fp16 against fp32 on the same token batches (a 19-step fp32 rollout's, teacher-forced through both): the stated
+// tolerance of the half-float path. Hidden states are the decoder's LayerNorm outputs (order 1); logits are those the
+// sampler reads (motion, lights). Random weights, and the shipped trained model (models/default.safetensors).
+void expect_fp16_close_to_fp32(const testing::World& f32, const testing::World& f16, double hidden_tol,
+                               double logit_tol) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  o.seed = 11;
+  o.roi_radius = 40;
+  o.max_agents = 24;
+  Session::Probe probe;
+  auto s = Session::create(f32.model, f32.scenario, f32.map, o, &probe);
+  ASSERT_TRUE(s.ok()) << s.status();
+  for (int step = 3; step < 19; ++step) ASSERT_TRUE((*s)->step({sdc_control(f32, step)}).ok());
+  KvCache half = f16.model->new_cache(), single = f32.model->new_cache();
+  ASSERT_TRUE(half.half());
+  double max_hidden = 0, max_logit = 0;
+  for (const auto& batch : probe.batches) {
+    std::vector<DecoderToken> a = batch, b = batch;
+    const Mat h16 = f16.model->decode(*f16.map, half, a);
+    const Mat h32 = f32.model->decode(*f32.map, single, b);
+    max_hidden = std::max<double>(max_hidden, (h16 - h32).cwiseAbs().maxCoeff());
+    for (int i = 0; i < h16.rows(); ++i) {
+      Mat x, y;
+      if (batch[i].kind == TokenKind::motion) x = f16.model->motion_logits(h16.row(i)), y = f32.model->motion_logits(h32.row(i));
+      if (batch[i].kind == TokenKind::light) x = f16.model->light_logits(h16.row(i)), y = f32.model->light_logits(h32.row(i));
+      if (x.size()) max_logit = std::max<double>(max_logit, (x - y).cwiseAbs().maxCoeff());
+    }
+  }
+  EXPECT_LT(max_hidden, hidden_tol);
+  EXPECT_LT(max_logit, logit_tol);
+  std::printf("fp16 vs fp32 (%s) over %zu batches: max |hidden diff| %.3g, max |logit diff| %.3g\n",
+              f32.model->config().name.c_str(), probe.batches.size(), max_hidden, max_logit);
+}
+
+TEST_F(Fp16Test, HalfFloatKeysStayCloseToFloatKeys) {
+  expect_fp16_close_to_fp32(load_world("small", 1), w(), 2e-3, 1e-3);  // measured: 1.9e-4 and 2.4e-5
+}
+
+TEST(Fp16Trained, HalfFloatKeysStayCloseToFloatKeysWithTheShippedModel) {
+  auto weights = load_weights(SS_SOURCE_DIR "/models/default.safetensors");
+  ASSERT_TRUE(weights.ok()) << weights.status();
+  testing::World f32 = load_world("small", 1), f16 = f32;
+  f32.model = *Model::create(*weights);
+  f16.model = *Model::create(*weights, fp16());
+  f32.map = *f32.model->encode_map(nearest_segments(segment_map(*f32.scenario), scenario_focus(*f32.scenario)));
+  f16.map = f32.map;  // the map encoding does not depend on the KV precision
+  expect_fp16_close_to_fp32(f32, f16, 1e-2, 1e-2);  // measured: 7.4e-4 and 2.3e-3
+}
+
+TEST_F(Fp16Test, SameSeedSameRolloutAtAnyThreadCount) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  o.seed = 9;
+  auto alone = start(w(), o);
+  const auto reference = roll(*alone, w(), 5);
+  std::vector<std::vector<StepResult>> results(3);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 3; ++t)
+    threads.emplace_back([&, t] {
+      auto s = start(w(), o);
+      results[t] = roll(*s, w(), 5);
+    });
+  for (auto& t : threads) t.join();
+  for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
+}
+
+TEST_F(Fp16Test, ForkAndSaveRestoreContinueIdentically) {
+  for (SessionMode mode : {SessionMode::motion, SessionMode::full}) {
+    SessionOptions o;
+    o.mode = mode;
+    o.seed = 21;
+    o.roi_radius = 60;
+    auto s = start(w(), o);
+    roll(*s, w(), 24);  // past L * (W - 1) steps: the saved batches are a suffix of the history
+    auto copy = s->fork();
+    const std::string bytes = s->save();
+    auto restored = Session::restore(w().model, w().scenario, w().map, bytes);
+    ASSERT_TRUE(restored.ok()) << restored.status();
+    const auto a = roll(*s, w(), 8);
+    const auto b = roll(**restored, w(), 8);
+    const auto c = roll(*copy, w(), 8);
+    EXPECT_TRUE(same_rollout(a, b)) << session_mode_name(mode);
+    EXPECT_TRUE(same_rollout(a, c)) << session_mode_name(mode);
+  }
+}
+
+}  // namespace
+}  // namespace ss
