@@ -8,6 +8,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "bench/bench_world.h"
+#include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
 #include "nlohmann/json.hpp"
 #include "tools/cli_args.h"
@@ -167,7 +168,7 @@ int bench_main(int argc, char** argv) {
       2 * c.decoder_layers * c.d_model * (options.kv_precision == KvPrecision::fp16 ? sizeof(uint16_t) : sizeof(float));
   out["map_bytes_shared"] = world->map->bytes();
   if (args->has("json")) {
-    std::puts(out.dump(2).c_str());
+    std::puts(json_text(out).c_str());
   } else {
     std::printf("64-agent session: %zu bytes after %d steps, %zu after %d steps (%zu cached tokens)\n", after_window,
                 2 * c.window_steps, (*s)->memory_bytes(), long_steps, (*s)->cache_tokens());

@@ -20,6 +20,7 @@
 #include "engine/eval/aggregate.h"
 #include "engine/eval/evaluate.h"
 #include "engine/eval/submission.h"
+#include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
@@ -107,7 +108,7 @@ int compare_main(const Args& args) {
   if (args.has("json")) {
     const std::string out = args.get("json");
     std::ofstream f(out, std::ios::binary | std::ios::trunc);
-    f << report->json.dump(2) << "\n";
+    f << json_text(report->json) << "\n";
     f.close();
     if (!f) return fail("cannot write --json " + out);
   }
@@ -319,7 +320,7 @@ int eval_main(int argc, char** argv) {
   run.rollouts = options.rollouts;
   run.seed = options.session.seed;
   run.top_p = options.session.top_p, run.temperature = options.session.temperature;
-  const std::string json = eval_json(run, d, evaluations).dump(2) + "\n";
+  const std::string json = json_text(eval_json(run, d, evaluations)) + "\n";
   const std::string out = args->get("json");
   if (out == "-") {
     std::fputs(json.c_str(), stdout);

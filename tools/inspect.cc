@@ -1,6 +1,7 @@
 // scenestreamer inspect FILE... [--json]
 #include <cstdio>
 
+#include "engine/io/json_text.h"
 #include "engine/scenario/read.h"
 #include "tools/cli_args.h"
 #include "tools/commands.h"
@@ -34,8 +35,8 @@ int inspect_main(int argc, char** argv) {
   nlohmann::ordered_json summary = fidelity_json(total);
   summary["scenarios"] = scenarios->size();
   if (args->has("json")) {
-    std::puts((reports.size() == 1 ? reports[0] : nlohmann::ordered_json{{"scenarios", reports}, {"summary", summary}})
-                  .dump(2)
+    std::puts(json_text(reports.size() == 1 ? reports[0]
+                                            : nlohmann::ordered_json{{"scenarios", reports}, {"summary", summary}})
                   .c_str());
   } else if (reports.size() > 1) {
     std::printf("\nsummary over %zu scenarios:\n", scenarios->size());

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "client_common.h"
+#include "engine/io/json_text.h"
 
 namespace pb = scenestreamer::v1;
 using Clock = std::chrono::steady_clock;
@@ -93,12 +94,11 @@ int main(int argc, char** argv) {
   };
   const double sps = static_cast<double>(latencies_ms.size()) / seconds;
   if (json) {
-    std::string ids;
-    for (const std::string& id : session_ids) ids += (ids.empty() ? "\"" : ", \"") + id + "\"";
-    std::printf("{\"clients\": %d, \"steps\": %d, \"errors\": %d, \"steps_per_second\": %.2f, "
-                "\"latency_ms_p50\": %.2f, \"latency_ms_p99\": %.2f%s%s%s}\n",
-                clients, steps, errors.load(), sps, pct(0.5), pct(0.99), route ? ", \"session_ids\": [" : "",
-                ids.c_str(), route ? "]" : "");
+    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"errors", errors.load()},
+                                  {"steps_per_second", sps}, {"latency_ms_p50", pct(0.5)},
+                                  {"latency_ms_p99", pct(0.99)}};
+    if (route) out["session_ids"] = session_ids;
+    std::puts(ss::json_text(out, -1).c_str());
   } else {
     std::printf("%d clients x %d steps on %s: %.2f steps/s, latency p50 %.1f ms, p99 %.1f ms, %d errors%s%s\n",
                 clients, steps, scenario.c_str(), sps, pct(0.5), pct(0.99), errors.load(),

@@ -14,7 +14,7 @@
 #include "absl/strings/str_join.h"
 #include "engine/base/rng.h"
 #include "engine/io/file_io.h"
-#include "nlohmann/json.hpp"
+#include "engine/io/json_text.h"
 
 namespace ss {
 namespace {
@@ -477,7 +477,7 @@ std::string serialize_weights(const Weights& w) {
     offset += size;
   }
   // replace: a config name that is not UTF-8 must not throw; the loader then reports the mangled name.
-  std::string text = header.dump(-1, ' ', false, json::error_handler_t::replace);
+  std::string text = json_text(header, -1);
   text.append((8 - text.size() % 8) % 8, ' ');
   std::string out;
   out.reserve(kHeaderLengthBytes + text.size() + offset);

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/io/json_text.h"
 #include "engine/scenario/read.h"
 #include "tools/cli_args.h"
 #include "tools/dataset/dataset_commands.h"
@@ -53,7 +54,7 @@ int stats_main(int argc, char** argv) {
   if (args->has("json")) {
     nlohmann::ordered_json out = nlohmann::ordered_json::object();
     for (const auto& [name, j] : columns) out[name] = j;
-    std::puts(out.dump(2).c_str());
+    std::puts(json_text(out).c_str());
   } else {
     std::fputs(stats_table(columns, args->has("markdown")).c_str(), stdout);
   }

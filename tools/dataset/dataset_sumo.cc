@@ -15,6 +15,7 @@
 #include "absl/strings/str_split.h"
 #include "engine/base/rng.h"
 #include "engine/io/file_io.h"
+#include "engine/io/json_text.h"
 #include "nlohmann/json.hpp"
 #include "tools/cli_args.h"
 #include "tools/dataset/dataset_commands.h"
@@ -276,7 +277,7 @@ int run(const Options& o) {
   m["validation"] = fidelity_summary(writer.fidelity(), writer.validated());
   m["jobs"] = jobs;
   const std::string manifest = o.out + "/MANIFEST";
-  if (auto st = file_write_atomically(manifest, m.dump(2) + "\n"); !st.ok()) {
+  if (auto st = file_write_atomically(manifest, json_text(m) + "\n"); !st.ok()) {
     std::fprintf(stderr, "dataset sumo: %s\n", std::string(st.message()).c_str());
     return 1;
   }

@@ -169,9 +169,8 @@ absl::StatusOr<CompareReport> compare_eval_files(const CompareRequest& request) 
     const bool excludes = std::isfinite(d.low) && std::isfinite(d.high) && (d.low > 0 || d.high < 0);
     absl::StrAppendFormat(&r.table, "  %-44s %9s %9s %9s %22s %5d %s\n", d.name, fmt(d.a), fmt(d.b), fmt(d.difference),
                           absl::StrCat("[", fmt(d.low), ", ", fmt(d.high), "]"), d.scenarios, excludes ? "*" : "");
-    auto num = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
-    metrics_json.push_back({{"name", d.name}, {"scenarios", d.scenarios}, {"a", num(d.a)}, {"b", num(d.b)},
-                            {"difference", num(d.difference)}, {"low", num(d.low)}, {"high", num(d.high)},
+    metrics_json.push_back({{"name", d.name}, {"scenarios", d.scenarios}, {"a", d.a}, {"b", d.b},
+                            {"difference", d.difference}, {"low", d.low}, {"high", d.high},
                             {"excludes_zero", excludes}});
   }
   r.json = {{"a", a->path}, {"b", b->path}, {"scenarios", n}, {"resamples", request.bootstrap.resamples},

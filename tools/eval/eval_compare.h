@@ -18,7 +18,7 @@ struct CompareRequest {
 struct CompareReport {
   std::string table;   // for people
   nlohmann::json json;  // keys: a, b, scenarios, resamples, seed, level, metrics [{name, scenarios, a, b, difference,
-                        // low, high, excludes_zero}]
+                        // low, high, excludes_zero}]; undefined values are written as null by json_text()
 };
 
 // Reads both files, pairs their per_scenario entries by id and compares. Errors name the file and what is wrong:

@@ -11,8 +11,6 @@ namespace {
 
 using nlohmann::json;
 
-json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
 std::string policy_label(const EvalRunInfo& run) {
   if (run.policy != EvalPolicy::model) return eval_policy_name(run.policy);
   return absl::StrFormat("model (%s mode, top-p %g, temperature %g)", session_mode_name(run.mode), run.top_p,
@@ -20,25 +18,17 @@ std::string policy_label(const EvalRunInfo& run) {
 }
 
 void put_realism(json& j, const RealismScores& r) {
-  j["realism_meta"] = number(r.meta);
+  j["realism_meta"] = r.meta;
   for (int f = 0; f < kNumRealismFeatures; ++f)
-    j[std::string(wosac_2025_config()[f].name) + "_likelihood"] = number(r.likelihood[f]);
-  j["kinematic"] = number(r.kinematic);
-  j["interactive"] = number(r.interactive);
-  j["map"] = number(r.map);
-  j["collision_rate"] = number(r.collision_rate);
-  j["offroad_rate"] = number(r.offroad_rate);
-  j["min_ade"] = number(r.min_ade);
-  j["ade"] = number(r.ade);
+    j[std::string(wosac_2025_config()[f].name) + "_likelihood"] = r.likelihood[f];
+  j.update({{"kinematic", r.kinematic}, {"interactive", r.interactive}, {"map", r.map},
+            {"collision_rate", r.collision_rate}, {"offroad_rate", r.offroad_rate}, {"min_ade", r.min_ade},
+            {"ade", r.ade}});
 }
 
 void put_motion(json& j, const MotionMetrics& m) {
-  j["ade_avg"] = number(m.ade_avg);
-  j["ade_min"] = number(m.ade_min);
-  j["fde_avg"] = number(m.fde_avg);
-  j["fde_min"] = number(m.fde_min);
-  j["add"] = number(m.add);
-  j["fdd"] = number(m.fdd);
+  j.update({{"ade_avg", m.ade_avg}, {"ade_min", m.ade_min}, {"fde_avg", m.fde_avg}, {"fde_min", m.fde_min},
+            {"add", m.add}, {"fdd", m.fdd}});
 }
 
 double offroad_share(const PlacedAgents& p) {
@@ -49,12 +39,11 @@ double offroad_share(const PlacedAgents& p) {
 json placed_json(const PlacedAgents& p, int rollouts) {
   const double k = std::max(rollouts, 1);
   return {{"agents", p.agents / k}, {"vehicles", p.vehicles / k}, {"offroad_vehicles", p.offroad_vehicles / k},
-          {"offroad_rate", number(offroad_share(p))}};
+          {"offroad_rate", offroad_share(p)}};
 }
 
 json mmd_json(const InitialStateMmd& m) {
-  return {{"position", number(m.position)}, {"heading", number(m.heading)}, {"size", number(m.size)},
-          {"velocity", number(m.velocity)}};
+  return {{"position", m.position}, {"heading", m.heading}, {"size", m.size}, {"velocity", m.velocity}};
 }
 
 json windows_json(std::span<const RealismScores> windows, std::span<const int> scenarios = {}) {
@@ -114,11 +103,11 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
                    : "tracks_to_predict where the scenario names them; otherwise every agent valid at the current "
                      "frame; never the SDC (--sdc log)"}};
   if (run.policy == EvalPolicy::model) {
-    j["model_coverage"] = {{"constant_velocity_share", number(d.filled_share)}};
+    j["model_coverage"] = {{"constant_velocity_share", d.filled_share}};
     if (run.mode == SessionMode::full)
       j["model_coverage"].update({{"tracks_to_match", d.to_match},
                                   {"tracks_matched", d.matched},
-                                  {"match_distance_m", number(d.match_distance)}});
+                                  {"match_distance_m", d.match_distance}});
   }
   if (d.has_mmd)
     j["placed_agents"] = {{"log", placed_json(d.placed_log, 1)},
@@ -145,7 +134,7 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
     put_motion(ttp, s.motion_predict);
     ttp["agents"] = s.motion_predict.agents;
     o["tracks_to_predict"] = ttp;
-    if (run.policy == EvalPolicy::model) o["model_driven_share"] = number(1 - s.filled_share);
+    if (run.policy == EvalPolicy::model) o["model_driven_share"] = 1 - s.filled_share;
     o["windows"] = windows_json(s.windows);
     if (s.has_mmd) {
       o["mmd"] = {{"strict", mmd_json(s.mmd_strict)}, {"relaxed", mmd_json(s.mmd_relaxed)}};

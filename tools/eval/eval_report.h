@@ -24,7 +24,7 @@ struct EvalRunInfo {
 // collision_rate, offroad_rate, min_ade, ade_avg, ade_min, fde_avg, fde_min, add, fdd (all agents),
 // tracks_to_predict {...}, windows [...] (realism per window), mmd {strict, relaxed} in full mode, evaluated_objects,
 // per_scenario [...] (the same per scenario, with its windows, evaluated ids and the model's driven share).
-// Undefined values are null.
+// Undefined values (NaN) are written as null by json_text() (engine/io/json_text.h).
 nlohmann::json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<const ScenarioEvaluation> scenarios);
 
 std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d);
