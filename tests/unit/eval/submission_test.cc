@@ -289,7 +289,9 @@ TEST(RolloutExport, KeepsTheLogUpToTheCurrentFrame) {
     for (int f = now; f >= 0 && std::isnan(z); --f)
       if (log.states[f].valid) z = log.states[f].z;
     for (int f = now + 1; f < out->num_frames(); ++f)
-      if (t.states[f].valid) EXPECT_EQ(t.states[f].z, z) << t.id << " frame " << f;
+      if (t.states[f].valid) {
+        EXPECT_EQ(t.states[f].z, z) << t.id << " frame " << f;
+      }
   }
   EXPECT_GT(out->tracks.size(), s->tracks.size()) << "densify created no agent";
   // The SDC is driven by the model and stays valid over the rollout.
@@ -324,8 +326,9 @@ TEST(RolloutExport, AgentGoneAfterTheCurrentStepGetsNoTrack) {
   for (size_t i = 0; i < out->tracks.size(); ++i) {
     const Track& t = out->tracks[i];
     EXPECT_NE(t.id, gone);
-    if (i >= s->tracks.size())  // generated (a log track keeps its frames, valid or not)
+    if (i >= s->tracks.size()) {  // generated (a log track keeps its frames, valid or not)
       EXPECT_TRUE(std::any_of(t.states.begin(), t.states.end(), [](const ObjectState& x) { return x.valid; })) << t.id;
+    }
   }
 }
 
