@@ -7,51 +7,27 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "server/session_id.h"
+#include "state/snapshot.pb.h"
 
 namespace ss::server {
 namespace {
 
 // The format's magic and version, refused with both versions named when they differ. SSSNAP01 had no checksum;
 // SSSNAP02 kept the tick clock here (now the engine's state holds it); SSSNAP04 added the tenant and the
-// controllers' credentials (SSSNAP03 is still read: tenant "", no controllers).
+// controllers' credentials; SSSNAP05 is one protobuf message (proto/state/snapshot.proto) and holds an engine state
+// of version 3 (older files could not be restored by this engine anyway).
 constexpr char kMagicPrefix[] = "SSSNAP";
-constexpr char kMagic[] = "SSSNAP04";
-constexpr char kMagic03[] = "SSSNAP03";
+constexpr char kMagic[] = "SSSNAP05";
 constexpr char kSuffix[] = ".snapshot";
 
 void put_u64(std::string& out, uint64_t v) {
-  char b[8];
-  for (int i = 0; i < 8; ++i) b[i] = static_cast<char>((v >> (8 * i)) & 0xff);
-  out.append(b, 8);
-}
-void put_str(std::string& out, const std::string& s) {
-  put_u64(out, s.size());
-  out += s;
+  for (int i = 0; i < 8; ++i) out += static_cast<char>((v >> (8 * i)) & 0xff);
 }
 uint64_t get_u64(const char* p) {
   uint64_t v = 0;
   for (int i = 0; i < 8; ++i) v |= uint64_t(static_cast<unsigned char>(p[i])) << (8 * i);
   return v;
 }
-
-struct Reader {
-  const std::string& in;
-  size_t end;
-  size_t pos = 0;
-  bool u64(uint64_t* v) {
-    if (end - pos < 8) return false;
-    *v = get_u64(in.data() + pos);
-    pos += 8;
-    return true;
-  }
-  bool str(std::string* s) {
-    uint64_t n;
-    if (!u64(&n) || end - pos < n) return false;
-    s->assign(in, pos, n);
-    pos += n;
-    return true;
-  }
-};
 
 }  // namespace
 
@@ -63,18 +39,20 @@ absl::StatusOr<std::string> snapshot_path(const std::string& dir, const std::str
 absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   auto path = snapshot_path(dir, s.session_id);
   if (!path.ok()) return path.status();
-  std::string out(kMagic, 8);
-  put_str(out, s.session_id);
-  put_str(out, s.source.scenario_name);
-  put_str(out, s.source.womd_bytes);
-  put_u64(out, static_cast<uint64_t>(s.tick_deadline_ms));
-  put_str(out, s.session_bytes);
-  put_str(out, s.tenant);
-  put_u64(out, s.controllers.size());
+  state::Snapshot m;
+  m.set_session_id(s.session_id);
+  m.set_tenant(s.tenant);
   for (const auto& [agent, credential] : s.controllers) {
-    put_u64(out, static_cast<uint64_t>(agent));
-    put_str(out, credential);
+    state::Controller* c = m.add_controllers();
+    c->set_agent_id(agent);
+    c->set_credential(credential);
   }
+  m.set_scenario_name(s.source.scenario_name);
+  m.set_womd_bytes(s.source.womd_bytes);
+  m.set_tick_deadline_ms(s.tick_deadline_ms);
+  m.set_session_state(s.session_bytes);
+  std::string out(kMagic, 8);
+  m.AppendToString(&out);
   put_u64(out, fnv1a64(out));
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -91,8 +69,7 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   auto bad = [&](const std::string& what) { return absl::DataLossError(absl::StrCat("snapshot ", *path, ": ", what)); };
   if (in.size() < 8 || std::memcmp(in.data(), kMagicPrefix, 6) != 0)
     return bad("not a snapshot file (no SSSNAP magic)");
-  const bool v03 = std::memcmp(in.data(), kMagic03, 8) == 0;
-  if (!v03 && std::memcmp(in.data(), kMagic, 8) != 0)
+  if (std::memcmp(in.data(), kMagic, 8) != 0)
     return absl::FailedPreconditionError(absl::StrCat("snapshot ", *path, ": format ", in.substr(0, 8),
                                                       " is not this server's ", kMagic,
                                                       "; the session cannot be restored by this version"));
@@ -102,28 +79,21 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   if (stored != actual)
     return bad(absl::StrFormat("checksum mismatch (the file says %016x, its %d bytes hash to %016x): the file is "
                                "corrupt", stored, in.size() - 8, actual));
-  Reader r{in, in.size() - 8, 8};
-  Snapshot s;
-  uint64_t deadline;
-  if (!r.str(&s.session_id) || !r.str(&s.source.scenario_name) || !r.str(&s.source.womd_bytes) ||
-      !r.u64(&deadline) || !r.str(&s.session_bytes))
-    return bad("fields truncated");
-  if (!v03) {
-    uint64_t n;
-    if (!r.str(&s.tenant) || !r.u64(&n) || n > (r.end - r.pos) / 16) return bad("tenant or controllers truncated");
-    for (uint64_t i = 0; i < n; ++i) {
-      uint64_t agent;
-      std::string credential;
-      if (!r.u64(&agent) || !r.str(&credential)) return bad("controllers truncated");
-      s.controllers.emplace_back(static_cast<int64_t>(agent), std::move(credential));
-    }
-  }
-  if (r.pos != r.end) return bad("trailing bytes after the last field");
-  if (s.session_id != session_id)
-    return bad(absl::StrCat("holds session ", echo_id(s.session_id), ", not the ", echo_id(session_id),
+  state::Snapshot m;
+  if (!m.ParseFromArray(in.data() + 8, static_cast<int>(in.size() - 16))) return bad("the message does not parse");
+  if (m.session_id() != session_id)
+    return bad(absl::StrCat("holds session ", echo_id(m.session_id()), ", not the ", echo_id(session_id),
                             " its name says"));
-  if (deadline > 3'600'000) return bad(absl::StrCat("tick_deadline_ms ", std::to_string(deadline)));
-  s.tick_deadline_ms = static_cast<int>(deadline);
+  if (m.tick_deadline_ms() < 0 || m.tick_deadline_ms() > 3'600'000)
+    return bad(absl::StrCat("tick_deadline_ms ", m.tick_deadline_ms()));
+  Snapshot s;
+  s.session_id = m.session_id();
+  s.tenant = m.tenant();
+  for (const state::Controller& c : m.controllers()) s.controllers.emplace_back(c.agent_id(), c.credential());
+  s.source.scenario_name = m.scenario_name();
+  s.source.womd_bytes = m.womd_bytes();
+  s.tick_deadline_ms = m.tick_deadline_ms();
+  s.session_bytes = m.session_state();
   return s;
 }
 

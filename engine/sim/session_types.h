@@ -107,7 +107,8 @@ struct StateForceRequest {
 };
 
 // The session state format's magic (session_save): its last character is the format's version. Version 2 added the
-// tick clock (tick rate, tick, the poses pushed since the last model step).
-inline constexpr char kSessionStateMagic[9] = "SSSESSN2";
+// tick clock (tick rate, tick, the poses pushed since the last model step); version 3 is the same state as a protobuf
+// message (proto/state/session_state.proto) behind a hash.
+inline constexpr char kSessionStateMagic[9] = "SSSESSN3";
 
 }  // namespace ss

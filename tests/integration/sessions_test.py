@@ -249,13 +249,28 @@ def fnv1a64(data):
     return h
 
 
+def varint(n):
+    out = bytearray()
+    while True:
+        out.append((n & 0x7F) | (0x80 if n > 0x7F else 0))
+        n >>= 7
+        if not n:
+            return bytes(out)
+
+
 def with_session_id(snapshot, new_id):
-    """The snapshot file's bytes with another session id inside (and its checksum redone when it has one)."""
-    magic, checked = snapshot[:8], snapshot[:8] != b"SSSNAP01"
-    body = snapshot[:-8] if checked else snapshot
-    n = int.from_bytes(body[8:16], "little")
-    out = magic + len(new_id).to_bytes(8, "little") + new_id + body[16 + n:]
-    return out + fnv1a64(out).to_bytes(8, "little") if checked else out
+    """The snapshot file's bytes (SSSNAP05: magic, a protobuf message, checksum) with another session id inside and
+    its checksum redone. The id is the message's field 1, which protobuf writes first: tag 0x0A, length, bytes."""
+    magic, body = snapshot[:8], snapshot[8:-8]
+    assert body[0] == 0x0A, "the session id is not the message's first field"
+    n, pos, shift = 0, 1, 0
+    while True:
+        n |= (body[pos] & 0x7F) << shift
+        pos, shift = pos + 1, shift + 7
+        if not body[pos - 1] & 0x80:
+            break
+    out = magic + b"\x0a" + varint(len(new_id)) + new_id + body[pos + n:]
+    return out + fnv1a64(out).to_bytes(8, "little")
 
 
 class SnapshotTest(unittest.TestCase):
