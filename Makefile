@@ -68,7 +68,7 @@ soak: build
 # the real train split plus them (hours on 2 cores; stop it any time and run it again: it resumes from its
 # checkpoint). The run lives outside the repository. TRAIN_FROM_COMMITTED=1 starts from the committed checkpoint
 # (models/train-checkpoint.pt) instead, to continue the run the committed model came from: raise TRAIN_STEPS past the
-# checkpoint's step (e.g. TRAIN_STEPS=4000 TRAIN_AGENTS=64, the run in progress at the end of 2026-11-24). The
+# checkpoint's step (e.g. TRAIN_STEPS=3500 TRAIN_AGENTS=64, the run in progress at the end of 2026-11-24). The
 # committed run used these flags with 1,550 steps from step 788 to 1,550, then 2,500 (a warm restart); its first 788
 # steps ran under longer schedules (models/MODEL_CARD.md). From scratch, 2,500 steps make a close model.
 WOMD       ?= ../shared/data/womd
