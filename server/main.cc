@@ -11,6 +11,7 @@
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "server/allocator.h"
 #include "server/auth.h"
 #include "server/metrics.h"
 #include "server/session_manager.h"
@@ -60,6 +61,11 @@ ABSL_FLAG(std::string, tokens_file, "",
 ABSL_FLAG(int, health_port, -1,
           "Also serve grpc.health.v1.Health alone, plaintext and without tokens, on --health_host:PORT (for probes "
           "that cannot do TLS, like Kubernetes' gRPC probes; -1: off, 0: a free port)");
+ABSL_FLAG(int, malloc_arena_max, 0,
+          "Cap on glibc's malloc arenas (M_ARENA_MAX); 0: glibc's default, 8 per core (README, Faults)");
+ABSL_FLAG(double, malloc_trim_s, 0,
+          "After sessions close, give malloc's free memory back to the kernel (malloc_trim) at most this often, "
+          "seconds; 0: never (README, Faults)");
 ABSL_FLAG(std::string, health_host, "127.0.0.1", "Address of --health_port");
 
 namespace {
@@ -88,6 +94,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("scenestreamer-server [--port P] [--model W] [--scenario_dir D] [--snapshot_dir S] ...");
   absl::ParseCommandLine(argc, argv);
   spdlog::set_level(spdlog::level::from_str(absl::GetFlag(FLAGS_log_level)));
+  ss::server::allocator_set_arena_max(absl::GetFlag(FLAGS_malloc_arena_max));
 
   // SIGTERM and SIGINT are taken by one thread (sigwait), so no handler runs inside gRPC's threads.
   sigset_t signals;
@@ -130,6 +137,7 @@ int main(int argc, char** argv) {
                                                          : static_cast<int>(std::thread::hardware_concurrency());
   mo.default_tick_deadline_ms = absl::GetFlag(FLAGS_tick_deadline_ms);
   mo.max_watchers = absl::GetFlag(FLAGS_max_watchers);
+  mo.malloc_trim_interval_s = absl::GetFlag(FLAGS_malloc_trim_s);
   ss::server::SessionManager sessions(**engine, mo, metrics);
   metrics.sessions = [&] { return sessions.count(); };
   metrics.cache_bytes = [&] { return sessions.total_bytes(); };

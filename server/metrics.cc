@@ -3,6 +3,7 @@
 #include <exception>
 
 #include "absl/strings/str_cat.h"
+#include "server/allocator.h"
 #include "prometheus/collectable.h"
 #include "prometheus/gauge.h"
 #include "prometheus/metric_family.h"
@@ -34,10 +35,19 @@ class Metrics::Gauges : public prometheus::Collectable {
       f.metric.emplace_back().gauge.value = v;
       return f;
     };
+    const AllocatorStats a = allocator_stats();
     return {family("scenestreamer_sessions", "Sessions held in memory.", m_.sessions ? m_.sessions() : 0),
             family("scenestreamer_cache_bytes", "Bytes held by sessions (KV caches and state).",
                    m_.cache_bytes ? static_cast<double>(m_.cache_bytes()) : 0),
-            family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0)};
+            family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0),
+            // What RSS is made of (server/allocator.h): bytes in use vs bytes malloc holds free.
+            family("scenestreamer_malloc_in_use_bytes", "Bytes allocated with malloc and not freed (mallinfo2).",
+                   static_cast<double>(a.in_use)),
+            family("scenestreamer_malloc_free_bytes",
+                   "Bytes freed but kept by malloc's arenas, not returned to the kernel (mallinfo2).",
+                   static_cast<double>(a.free)),
+            family("scenestreamer_resident_bytes", "The server's resident memory (RSS).",
+                   static_cast<double>(a.resident))};
   }
 
  private:
