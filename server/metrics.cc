@@ -64,11 +64,14 @@ Metrics::Metrics()
                         .Register(*registry_)),
       rejected_(counter(*registry_, "scenestreamer_rejected_total", "Calls refused, by gRPC status code.")),
       calls_(counter(*registry_, "scenestreamer_calls_total", "Calls received, by method.")),
-      evictions_(counter(*registry_, "scenestreamer_evictions_total", "Idle sessions evicted to make room.")) {
+      evictions_(counter(*registry_, "scenestreamer_evictions_total", "Idle sessions evicted to make room.")),
+      trims_(counter(*registry_, "scenestreamer_malloc_trims_total",
+                     "malloc_trim calls after sessions closed (--malloc_trim_s).")) {
   // Series without labels exist from the start, so a scrape shows them at zero.
   steps_.Add({});
   step_seconds_.Add({}, kStepBuckets);
   evictions_.Add({});
+  trims_.Add({});
 }
 
 Metrics::~Metrics() = default;
@@ -80,6 +83,7 @@ void Metrics::count_step(double seconds) {
 
 void Metrics::count_rejected(const std::string& code) { rejected_.Add({{"code", code}}).Increment(); }
 void Metrics::count_eviction() { evictions_.Add({}).Increment(); }
+void Metrics::count_malloc_trim() { trims_.Add({}).Increment(); }
 void Metrics::count_call(const std::string& method) { calls_.Add({{"method", method}}).Increment(); }
 
 absl::StatusOr<int> Metrics::serve(const std::string& host, int port) {

@@ -528,7 +528,6 @@ absl::Status SessionManager::close_impl(const std::string& id, const std::string
     if (tenant != nullptr && it->second->tenant != *tenant) return not_found(id);
     s = it->second;
     sessions_.erase(it);
-    ++closed_since_trim_;
   }
   {
     std::lock_guard<std::mutex> l(s->mu);
@@ -539,6 +538,8 @@ absl::Status SessionManager::close_impl(const std::string& id, const std::string
   }
   // A background save running now checks `closed` after writing and removes its file too.
   if (!options_.snapshot_dir.empty()) remove_snapshot(options_.snapshot_dir, id);
+  s.reset();  // freed now unless a call still holds it: then the reaper's trim after a later close takes it
+  ++closed_since_trim_;
   return absl::OkStatus();
 }
 
@@ -828,6 +829,7 @@ void SessionManager::reaper() {
       const auto t0 = Clock::now();
       const int64_t released = allocator_trim();
       last_trim = Clock::now();
+      metrics_.count_malloc_trim();
       spdlog::debug("malloc_trim after {} sessions closed: RSS {:+.1f} MB in {:.1f} ms", closed,
                     -static_cast<double>(released) / (1 << 20),
                     std::chrono::duration<double, std::milli>(last_trim - t0).count());

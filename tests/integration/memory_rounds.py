@@ -66,6 +66,7 @@ def main():
                                    "--target", server.target, "--json"], capture_output=True, text=True, timeout=900)
             assert load.returncode == 0, load.stdout + load.stderr
             peak = faults_test.rss_mb(server.proc.pid)
+            lj = json.loads(load.stdout)
             if not a.no_faults:
                 ids = d.kill_a_client_mid_call(f"round{r}")
                 sid = d.create()
@@ -89,13 +90,18 @@ def main():
                    "in_use_mb": m.get("scenestreamer_malloc_in_use_bytes", 0) / 2**20,
                    "free_held_mb": m.get("scenestreamer_malloc_free_bytes", 0) / 2**20,
                    "sessions": m["scenestreamer_sessions"], "threads": len(os.listdir(f"/proc/{server.proc.pid}/task")),
-                   "seconds": time.time() - t}
+                   "seconds": time.time() - t, "steps_per_second": lj["steps_per_second"],
+                   "p50_ms": lj["latency_ms_p50"], "p99_ms": lj["latency_ms_p99"], "load_errors": lj["errors"]}
             rows.append(row)
             print(f"round {r + 1}: RSS {row['rss_mb']:.0f} MB (after the load {peak:.0f}), malloc in use "
                   f"{row['in_use_mb']:.0f} MB, free held {row['free_held_mb']:.0f} MB, sessions {row['sessions']:.0f}, "
-                  f"threads {row['threads']}, {row['seconds']:.0f} s", flush=True)
+                  f"threads {row['threads']}, {row['seconds']:.0f} s; load {row['steps_per_second']:.1f} steps/s, "
+                  f"p50 {row['p50_ms']:.0f} ms, p99 {row['p99_ms']:.0f} ms, {row['load_errors']} errors", flush=True)
     finally:
         server.stop()
+        if os.environ.get("SS_KEEP_LOG"):
+            with open(os.environ["SS_KEEP_LOG"], "w") as f:
+                f.write(server.output())
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f)
