@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
                                                         : arena_max == 0 ? std::string("glibc's default")
                                                                          : std::to_string(arena_max),
                absl::GetFlag(FLAGS_malloc_trim_s) > 0
-                   ? "at most every " + std::to_string(absl::GetFlag(FLAGS_malloc_trim_s)) + " s after sessions close"
+                   ? fmt::format("at most every {:g} s after sessions close", absl::GetFlag(FLAGS_malloc_trim_s))
                    : std::string("never (--malloc_trim_s=0)"));
 
   // SIGTERM and SIGINT are taken by one thread (sigwait), so no handler runs inside gRPC's threads.
