@@ -3,6 +3,7 @@
 #include <exception>
 
 #include "absl/strings/str_cat.h"
+#include "server/allocator.h"
 #include "prometheus/collectable.h"
 #include "prometheus/gauge.h"
 #include "prometheus/metric_family.h"
@@ -34,10 +35,19 @@ class Metrics::Gauges : public prometheus::Collectable {
       f.metric.emplace_back().gauge.value = v;
       return f;
     };
+    const AllocatorStats a = allocator_stats();
     return {family("scenestreamer_sessions", "Sessions held in memory.", m_.sessions ? m_.sessions() : 0),
             family("scenestreamer_cache_bytes", "Bytes held by sessions (KV caches and state).",
                    m_.cache_bytes ? static_cast<double>(m_.cache_bytes()) : 0),
-            family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0)};
+            family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0),
+            // What RSS is made of (server/allocator.h): bytes in use vs bytes malloc holds free.
+            family("scenestreamer_malloc_in_use_bytes", "Bytes allocated with malloc and not freed (mallinfo2).",
+                   static_cast<double>(a.in_use)),
+            family("scenestreamer_malloc_free_bytes",
+                   "Bytes freed but kept by malloc's arenas, not returned to the kernel (mallinfo2).",
+                   static_cast<double>(a.free)),
+            family("scenestreamer_resident_bytes", "The server's resident memory (RSS).",
+                   static_cast<double>(a.resident))};
   }
 
  private:
@@ -54,11 +64,14 @@ Metrics::Metrics()
                         .Register(*registry_)),
       rejected_(counter(*registry_, "scenestreamer_rejected_total", "Calls refused, by gRPC status code.")),
       calls_(counter(*registry_, "scenestreamer_calls_total", "Calls received, by method.")),
-      evictions_(counter(*registry_, "scenestreamer_evictions_total", "Idle sessions evicted to make room.")) {
+      evictions_(counter(*registry_, "scenestreamer_evictions_total", "Idle sessions evicted to make room.")),
+      trims_(counter(*registry_, "scenestreamer_malloc_trims_total",
+                     "malloc_trim calls after sessions closed (--malloc_trim_s).")) {
   // Series without labels exist from the start, so a scrape shows them at zero.
   steps_.Add({});
   step_seconds_.Add({}, kStepBuckets);
   evictions_.Add({});
+  trims_.Add({});
 }
 
 Metrics::~Metrics() = default;
@@ -70,6 +83,7 @@ void Metrics::count_step(double seconds) {
 
 void Metrics::count_rejected(const std::string& code) { rejected_.Add({{"code", code}}).Increment(); }
 void Metrics::count_eviction() { evictions_.Add({}).Increment(); }
+void Metrics::count_malloc_trim() { trims_.Add({}).Increment(); }
 void Metrics::count_call(const std::string& method) { calls_.Add({{"method", method}}).Increment(); }
 
 absl::StatusOr<int> Metrics::serve(const std::string& host, int port) {

@@ -24,6 +24,7 @@ class Metrics {
   void count_rejected(const std::string& code);
   void count_eviction();
   void count_call(const std::string& method);
+  void count_malloc_trim();
   // Gauges read at scrape time.
   std::function<int()> sessions;
   std::function<uint64_t()> cache_bytes;
@@ -43,6 +44,7 @@ class Metrics {
   prometheus::Family<prometheus::Counter>& rejected_;
   prometheus::Family<prometheus::Counter>& calls_;
   prometheus::Family<prometheus::Counter>& evictions_;
+  prometheus::Family<prometheus::Counter>& trims_;
   std::unique_ptr<prometheus::Exposer> exposer_;
 };
 

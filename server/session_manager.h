@@ -36,6 +36,9 @@ struct ManagerOptions {
   int compute_threads = 2;           // engine calls running at once
   int default_tick_deadline_ms = 2000;
   int max_watchers = 1024;           // WatchSession streams open at once, over all sessions
+  // Once sessions closed (or were evicted), at most this often: malloc_trim(0) from the reaper thread, so what they
+  // freed leaves the resident set rather than staying in malloc's arenas (server/allocator.h). 0: never.
+  double malloc_trim_interval_s = 0;
 };
 
 struct SessionInfo {
@@ -174,6 +177,7 @@ class SessionManager {
   std::atomic<bool> draining_{false};
   std::atomic<int> watchers_{0};
   std::atomic<bool> stop_{false};
+  std::atomic<int> closed_since_trim_{0};  // sessions closed or evicted since the reaper's last malloc_trim
   std::thread reaper_;
 };
 

@@ -44,10 +44,16 @@ absl::StatusOr<std::shared_ptr<const MapContext>> MapCache::get(const Scenario& 
   if (!map.ok()) return map.status();
   std::lock_guard<std::mutex> lock(mu_);
   ++encodes_;
+  std::erase_if(maps_, [&](const auto& e) { return e.first != key && e.second.expired(); });
   auto& slot = maps_[key];
   if (auto existing = slot.lock()) return existing;
   slot = *map;
   return *map;
+}
+
+size_t MapCache::entries() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return maps_.size();
 }
 
 int MapCache::encodes() const {

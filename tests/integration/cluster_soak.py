@@ -1,8 +1,11 @@
 """`make soak`: steady load through the router for SS_SOAK_MINUTES (30 by default) on 3 loopback replicas behind
 nginx (deploy/router/nginx.conf). Rounds of the load generator (24 sessions x 40 steps each, every call routed by
 x-session-id) run back to back; each replica's resident memory and session count are sampled every 30 s. Passes
-with zero errors and flat memory: no replica's RSS in the last quarter of the run more than 10 % (or 64 MB, whichever
-is larger) above its RSS after the first quarter."""
+with zero errors and flat memory: no replica's highest RSS in the last quarter of the run more than 10 % (or 64 MB,
+whichever is larger) above its highest RSS in the second quarter. Peaks against peaks: since the server gives freed
+memory back after sessions close (--malloc_trim_s), a replica's RSS swings with the sessions it holds and the time
+since its last trim, and one sample after the first quarter may be a trough (it was, 108 MB against a swing of
+50-235 MB, in the first 10-minute run with the trim)."""
 import json
 import os
 import subprocess
@@ -53,7 +56,7 @@ class ClusterSoak(unittest.TestCase):
             self.assertGreaterEqual(len(samples), 4, "too short a run to judge memory")
             quarter = len(samples) // 4
             for i in range(3):
-                early = samples[quarter][1][i]
+                early = max(s[1][i] for s in samples[quarter:2 * quarter])
                 late = max(s[1][i] for s in samples[-quarter:])
                 self.assertLessEqual(late, max(early * 1.10, early + 64), f"replica {i}: RSS {early:.1f} -> {late:.1f} MB")
 

@@ -57,6 +57,31 @@ TEST_F(ManagerTest, TheSessionCapHoldsWithAClearError) {
   EXPECT_EQ(f.status().code(), absl::StatusCode::kResourceExhausted);
 }
 
+// The reaper gives freed memory back to the kernel once sessions closed, at most every --malloc_trim_s, and not while
+// nothing closes (issue 13; server/allocator.h).
+TEST_F(ManagerTest, TheReaperTrimsMallocAfterSessionsCloseOnly) {
+  auto trims = [&] {
+    const std::string text = metrics_.render();
+    const std::string key = "\nscenestreamer_malloc_trims_total ";
+    const size_t at = text.find(key);
+    return at == std::string::npos ? -1.0 : std::stod(text.substr(at + key.size()));
+  };
+  ManagerOptions o;
+  o.malloc_trim_interval_s = 0.2;
+  SessionManager m(*engine_, o, metrics_);
+  ASSERT_TRUE(create(m, "a").ok());
+  ASSERT_TRUE(create(m, "b").ok());
+  ASSERT_TRUE(m.step("a", "", "", {}, 2, soon()).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_EQ(trims(), 0) << "a trim with no session closed";
+  ASSERT_TRUE(m.close("a", "").ok());
+  ASSERT_TRUE(m.close("b", "").ok());
+  for (int i = 0; i < 50 && trims() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(trims(), 1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_EQ(trims(), 1) << "trims again with nothing closed since";
+}
+
 TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
   const auto dir = std::filesystem::temp_directory_path() / "ss-manager-test-snapshots";
   std::filesystem::remove_all(dir);

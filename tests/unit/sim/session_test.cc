@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "engine/sim/events.h"
+#include "engine/sim/map_cache.h"
 #include "engine/tokens/fidelity.h"
 #include "state/session_state.pb.h"
 #include "tests/unit/sim/session_fixture.h"
@@ -474,6 +475,27 @@ TEST_F(SessionTest, RestoreChecksEveryFieldOfAWellFormedState) {
     EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument) << expected << ": " << r.status();
     EXPECT_NE(r.status().message().find(expected), std::string::npos) << expected << ": " << r.status();
   }
+}
+
+TEST_F(SessionTest, MapCacheSharesLiveEncodingsAndForgetsDroppedOnes) {
+  MapCache cache(w().model);
+  auto a = cache.get(*w().scenario);
+  auto b = cache.get(*w().scenario);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->get(), b->get());
+  EXPECT_EQ(cache.encodes(), 1);
+  // Client-sent scenarios with maps of their own, each dropped by its session before the next arrives: the cache
+  // keeps no entry for them (the server's memory under repeated client-sent scenarios, issue 13).
+  a->reset();
+  b->reset();
+  for (int i = 1; i <= 5; ++i) {
+    Scenario moved = *w().scenario;
+    moved.map_features[0].points[0].x += i;
+    auto m = cache.get(moved);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(cache.entries(), 1u);
+  }
+  EXPECT_EQ(cache.encodes(), 6);
 }
 
 TEST_F(SessionTest, CacheKeepsOnlyTheWindow) {
