@@ -34,6 +34,7 @@ struct ManagedSession {
   std::atomic<uint64_t> changes{1};              // counts ticks, injections and forces (1: never saved)
   uint64_t saved_changes = 0;                    // `changes` when the snapshot was last written (under engine_mu)
   std::atomic<int64_t> last_used{0};             // steady clock, nanoseconds
+  std::atomic<int> calls{0};                     // calls in progress: waiting (a slot, other controllers) or running
 
   std::mutex mu;
   std::condition_variable cv;
@@ -51,7 +52,10 @@ struct ManagedSession {
   bool closed = false;
 
   void touch() { last_used = Clock::now().time_since_epoch().count(); }
+  // 0 while a call is in progress: a call that waits (for a compute slot under load, or for the other controllers
+  // of a multi-client tick) must not have its session closed or evicted under it by the idle rules.
   double idle_seconds() const {
+    if (calls > 0) return 0;
     return std::chrono::duration<double>(Clock::now().time_since_epoch() - Clock::duration(last_used.load())).count();
   }
   // Holds mu.
@@ -66,6 +70,17 @@ struct ManagedSession {
     std::erase_if(watchers, [](const auto& w) { return w->done(); });
     for (const auto& w : watchers) w->on_tick(recent.back());
   }
+};
+
+// A call in progress on a session (ManagedSession::calls) for as long as it lives; the session counts as used when
+// the call ends.
+struct InCall {
+  explicit InCall(ManagedSession& m) : s(m) { ++s.calls; }
+  ~InCall() {
+    s.touch();
+    --s.calls;
+  }
+  ManagedSession& s;
 };
 
 SessionManager::SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics)
@@ -378,6 +393,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
   auto found = find(id, tenant, deadline);
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
+  InCall in_call(s);
   if (num_ticks == 0) num_ticks = 1;
   if (num_ticks < 0 || num_ticks > 1000)
     return absl::InvalidArgumentError(absl::StrCat("num_ticks ", std::to_string(num_ticks), ": must be in 1..1000"));
@@ -465,6 +481,7 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
   auto found = find(id, tenant, deadline);
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
+  InCall in_call(s);
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
@@ -490,6 +507,7 @@ absl::Status SessionManager::state_force(const std::string& id, const std::strin
   auto found = find(id, tenant, Clock::now() + std::chrono::seconds(30));
   if (!found.ok()) return found.status();
   ManagedSession& s = **found;
+  InCall in_call(s);
   {
     std::vector<ControlInput> forced;
     for (const auto& [agent, state] : r.agents) {

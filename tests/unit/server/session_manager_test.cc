@@ -147,6 +147,37 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   EXPECT_NE(bad.status().message().find("123456789"), std::string::npos);
 }
 
+// A call that waits is use: under load a call once waited longer than --idle_timeout_s for a compute slot and the
+// idle rule closed its session under it. Here the wait is a multi-client tick's for its second controller.
+TEST_F(ManagerTest, ASessionWithACallWaitingIsNotIdle) {
+  ManagerOptions o;
+  o.idle_timeout_s = 0.5;
+  SessionManager m(*engine_, o, metrics_);
+  std::string id;
+  auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &id);
+  ASSERT_TRUE(first.ok());
+  SessionOptions so;
+  for (const AgentView& a : first->view.agents)
+    if (a.type == 0 && so.controlled_ids.size() < 2) so.controlled_ids.push_back(static_cast<int32_t>(a.id));
+  ASSERT_EQ(so.controlled_ids.size(), 2u);
+  std::string multi;
+  auto t0 = m.create("", {*name_, ""}, so, 2500, "", soon(), &multi);  // the tick waits up to 2.5 s for both
+  ASSERT_TRUE(t0.ok()) << t0.status();
+  const AgentView* a = nullptr;
+  for (const AgentView& v : t0->view.agents)
+    if (v.id == so.controlled_ids[0]) a = &v;
+  ASSERT_NE(a, nullptr);
+  const auto start = Clock::now();
+  auto got = m.step(multi, "", "", {ControlInput{a->id, a->state.x, a->state.y, a->state.heading, 0.0}}, 1, soon());
+  ASSERT_TRUE(got.ok()) << got.status();  // made at the tick deadline with one controller's pose, not closed
+  EXPECT_GE(Clock::now() - start, std::chrono::milliseconds(2000));
+  EXPECT_EQ((*got)[0].tick, 1);
+  EXPECT_TRUE(m.get(multi, "").ok());
+  // Unused afterwards (count() does not use a session), it is closed by the same rule.
+  for (int i = 0; i < 30 && m.count() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(m.count(), 0);
+}
+
 TEST_F(ManagerTest, AnotherTenantsSessionIsAnsweredAsAnUnknownOne) {
   ManagerOptions o;
   o.evict_idle_s = 1000;
