@@ -177,7 +177,7 @@ absl::Status SessionManager::make_room_locked(uint64_t extra_bytes, int extra_se
   while (over()) {
     std::vector<std::shared_ptr<ManagedSession>> idle;
     for (const auto& [id, s] : sessions_)
-      if (s.get() != keep && s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
+      if (s.get() != keep && s->calls == 0 && s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
     std::sort(idle.begin(), idle.end(), [](const auto& a, const auto& b) { return a->last_used < b->last_used; });
     bool evicted = false;
     for (const auto& s : idle)
