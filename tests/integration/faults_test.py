@@ -17,7 +17,7 @@ import grpc
 
 from scenestreamer.v1 import simulator_pb2 as pb
 from scenestreamer.v1 import simulator_pb2_grpc as rpc
-from server_process import ServerTestCase
+from server_process import ServerTestCase, error_of
 
 C = grpc.StatusCode
 IDLE_S = 4  # --idle_timeout_s: orphaned sessions are closed this long after their last call
@@ -28,14 +28,6 @@ MAX_SPREAD_MB = 16  # RSS after rounds 2..ROUNDS: the spread allowed
 def rss_mb(pid):
     with open(f"/proc/{pid}/status") as f:
         return int(re.search(r"VmRSS:\s+(\d+) kB", f.read()).group(1)) / 1024
-
-
-def error_of(fn, *args, **kw):
-    try:
-        fn(*args, **kw)
-    except grpc.RpcError as e:
-        return e.code(), e.details()
-    return None, None
 
 
 def wait_for(predicate, timeout, what):
@@ -78,6 +70,16 @@ class FaultsTest(ServerTestCase):
         self.assertEqual([k.tick for k in r.ticks], [1, 2])
         self.server.stub.CloseSession(pb.CloseSessionRequest(session_id=sid))
         self.assertLess(time.time() - t, 30)
+
+    def assert_stopped_and_continues(self, sid):
+        """A 1000-tick call on `sid` stopped early (cancelled, late) and left no work behind; the session is not stuck:
+        it continues from where the call stopped. Closes it."""
+        self.assert_no_work_left()
+        tick = self.server.stub.GetSession(pb.GetSessionRequest(session_id=sid)).info.tick
+        self.assertLess(tick, 1000)
+        r = self.server.stub.StepScene(pb.StepSceneRequest(session_id=sid), timeout=30)
+        self.assertEqual(r.ticks[0].tick, tick + 1)
+        self.server.stub.CloseSession(pb.CloseSessionRequest(session_id=sid))
 
     def assert_no_work_left(self):
         """Nothing computes for a client that is gone: after at most the tick in progress (and one the dying call may
@@ -184,12 +186,7 @@ class FaultsTest(ServerTestCase):
         wait_for(lambda: self.server.stub.GetSession(pb.GetSessionRequest(session_id=sid)).info.tick >= 2, 60,
                  "the long call to start")
         fut.cancel()
-        self.assert_no_work_left()
-        tick = self.server.stub.GetSession(pb.GetSessionRequest(session_id=sid)).info.tick
-        self.assertLess(tick, 1000)
-        r = self.server.stub.StepScene(pb.StepSceneRequest(session_id=sid), timeout=30)
-        self.assertEqual(r.ticks[0].tick, tick + 1)
-        self.server.stub.CloseSession(pb.CloseSessionRequest(session_id=sid))
+        self.assert_stopped_and_continues(sid)
 
     def test_a_watcher_that_stops_reading_neither_holds_up_the_session_nor_grows(self):
         sid = self.create()
@@ -231,13 +228,7 @@ class FaultsTest(ServerTestCase):
         code, msg = error_of(self.server.stub.StepScene, pb.StepSceneRequest(session_id=sid, num_ticks=1000),
                              timeout=1.0)
         self.assertEqual(code, C.DEADLINE_EXCEEDED)
-        self.assert_no_work_left()
-        tick = self.server.stub.GetSession(pb.GetSessionRequest(session_id=sid)).info.tick
-        self.assertLess(tick, 1000)
-        # The session is not stuck: it continues from where the call stopped.
-        r = self.server.stub.StepScene(pb.StepSceneRequest(session_id=sid), timeout=30)
-        self.assertEqual(r.ticks[0].tick, tick + 1)
-        self.server.stub.CloseSession(pb.CloseSessionRequest(session_id=sid))
+        self.assert_stopped_and_continues(sid)
 
     def test_a_deadline_that_passes_waiting_for_other_controllers(self):
         probe = self.server.stub.CreateSession(pb.CreateSessionRequest(scenario_name=self.name))

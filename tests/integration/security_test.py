@@ -13,18 +13,10 @@ import grpc
 from scenestreamer.v1 import simulator_pb2 as pb
 from scenestreamer.v1 import simulator_pb2_grpc as rpc
 from pki import Pki
-from server_process import DATA, SERVER, Server, channel_to, small_model
+from server_process import DATA, SERVER, Server, channel_to, error_of, small_model
 
 C = grpc.StatusCode
 ALICE, BOB = "alice-token-0123456789", "bob-token-abcdefghijkl"
-
-
-def error_of(fn, *args, **kw):
-    try:
-        fn(*args, **kw)
-    except grpc.RpcError as e:
-        return e.code(), e.details()
-    return None, None
 
 
 def first_scenario(stub):

@@ -153,6 +153,15 @@ def womd_records(path):
     return out
 
 
+def error_of(fn, *args, **kw):
+    """The (code, details) of the gRPC error that fn(*args, **kw) raises; (None, None) when it succeeds."""
+    try:
+        fn(*args, **kw)
+    except grpc.RpcError as e:
+        return e.code(), e.details()
+    return None, None
+
+
 def ego_pose(tick):
     """A simple deterministic controller: the controlled agent keeps its heading and speed for 0.5 s."""
     import math

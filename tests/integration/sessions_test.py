@@ -11,7 +11,7 @@ import unittest
 import grpc
 
 from scenestreamer.v1 import simulator_pb2 as pb
-from server_process import Server
+from server_process import Server, error_of
 
 C = grpc.StatusCode
 
@@ -26,14 +26,6 @@ def without_events(tick):
     out.CopyFrom(tick)
     del out.events[:]
     return out
-
-
-def error_of(fn, *args, **kw):
-    try:
-        fn(*args, **kw)
-    except grpc.RpcError as e:
-        return e.code(), e.details()
-    return None, None
 
 
 class TicksTest(unittest.TestCase):

@@ -35,6 +35,22 @@ class ManagerTest : public ::testing::Test {
     if (!t.ok()) return t.status();
     return out;
   }
+  // A session of the test scenario with two controlled agents (two clients) and a multi-client tick deadline: the
+  // first two vehicles of a probe session, whose first-step views go in `two`.
+  absl::StatusOr<std::string> create_two_controllers(SessionManager& m, int tick_deadline_ms,
+                                                     std::vector<AgentView>& two) {
+    std::string probe, id;
+    auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &probe);
+    if (!first.ok()) return first.status();
+    SessionOptions so;
+    for (const AgentView& a : first->view.agents)
+      if (a.type == 0 && two.size() < 2) two.push_back(a);
+    if (two.size() != 2) return absl::FailedPreconditionError("the test scenario has fewer than two vehicles");
+    for (const AgentView& a : two) so.controlled_ids.push_back(static_cast<int32_t>(a.id));
+    auto t = m.create("", {*name_, ""}, so, tick_deadline_ms, "", soon(), &id);
+    if (!t.ok()) return t.status();
+    return id;
+  }
   static Engine* engine_;
   static std::string* name_;
   Metrics metrics_;
@@ -112,27 +128,18 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   ManagerOptions o;
   o.evict_idle_s = 1000;
   SessionManager m(*engine_, o, metrics_);
-  std::string id;
-  auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &id);
-  ASSERT_TRUE(first.ok());
-  std::vector<int64_t> ids;
-  for (const AgentView& a : first->view.agents)
-    if (a.type == 0 && ids.size() < 2) ids.push_back(a.id);
-  SessionOptions so;
-  for (int64_t a : ids) so.controlled_ids.push_back(static_cast<int32_t>(a));
-  std::string multi;
-  auto t0 = m.create("", {*name_, ""}, so, 60000, "", soon(), &multi);
-  ASSERT_TRUE(t0.ok()) << t0.status();
+  std::vector<AgentView> two;
+  auto created = create_two_controllers(m, 60000, two);
+  ASSERT_TRUE(created.ok()) << created.status();
+  const std::string multi = *created;
   std::vector<absl::StatusOr<std::vector<TickView>>> got(2, absl::UnknownError("not run"));
   std::vector<std::thread> clients;
   for (int k = 0; k < 2; ++k)
     clients.emplace_back([&, k] {
-      for (const AgentView& a : t0->view.agents)
-        if (a.id == ids[k]) {
-          ControlInput c{a.id, a.state.x + 0.5 * a.state.vx, a.state.y + 0.5 * a.state.vy, a.state.heading, {}};
-          if (k == 1) std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the late one
-          got[k] = m.step(multi, "", "", {c}, 1, soon());
-        }
+      const AgentView& a = two[k];
+      ControlInput c{a.id, a.state.x + 0.5 * a.state.vx, a.state.y + 0.5 * a.state.vy, a.state.heading, {}};
+      if (k == 1) std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the late one
+      got[k] = m.step(multi, "", "", {c}, 1, soon());
     });
   for (auto& c : clients) c.join();
   ASSERT_TRUE(got[0].ok()) << got[0].status();
@@ -153,22 +160,13 @@ TEST_F(ManagerTest, ASessionWithACallWaitingIsNotIdle) {
   ManagerOptions o;
   o.idle_timeout_s = 0.5;
   SessionManager m(*engine_, o, metrics_);
-  std::string id;
-  auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &id);
-  ASSERT_TRUE(first.ok());
-  SessionOptions so;
-  for (const AgentView& a : first->view.agents)
-    if (a.type == 0 && so.controlled_ids.size() < 2) so.controlled_ids.push_back(static_cast<int32_t>(a.id));
-  ASSERT_EQ(so.controlled_ids.size(), 2u);
-  std::string multi;
-  auto t0 = m.create("", {*name_, ""}, so, 2500, "", soon(), &multi);  // the tick waits up to 2.5 s for both
-  ASSERT_TRUE(t0.ok()) << t0.status();
-  const AgentView* a = nullptr;
-  for (const AgentView& v : t0->view.agents)
-    if (v.id == so.controlled_ids[0]) a = &v;
-  ASSERT_NE(a, nullptr);
+  std::vector<AgentView> two;
+  auto created = create_two_controllers(m, 2500, two);  // the tick waits up to 2.5 s for both
+  ASSERT_TRUE(created.ok()) << created.status();
+  const std::string multi = *created;
+  const AgentView& a = two[0];
   const auto start = Clock::now();
-  auto got = m.step(multi, "", "", {ControlInput{a->id, a->state.x, a->state.y, a->state.heading, 0.0}}, 1, soon());
+  auto got = m.step(multi, "", "", {ControlInput{a.id, a.state.x, a.state.y, a.state.heading, 0.0}}, 1, soon());
   ASSERT_TRUE(got.ok()) << got.status();  // made at the tick deadline with one controller's pose, not closed
   EXPECT_GE(Clock::now() - start, std::chrono::milliseconds(2000));
   EXPECT_EQ((*got)[0].tick, 1);
@@ -215,17 +213,10 @@ TEST_F(ManagerTest, OnlyAnAgentsControllerSendsItsPoses) {
   ManagerOptions o;
   o.evict_idle_s = 1000;
   SessionManager m(*engine_, o, metrics_);
-  std::string probe;
-  auto first = m.create("", {*name_, ""}, {}, 0, "", soon(), &probe);
-  ASSERT_TRUE(first.ok());
   std::vector<AgentView> two;
-  for (const AgentView& a : first->view.agents)
-    if (a.type == 0 && two.size() < 2) two.push_back(a);
-  ASSERT_EQ(two.size(), 2u);
-  SessionOptions so;
-  for (const AgentView& a : two) so.controlled_ids.push_back(static_cast<int32_t>(a.id));
-  std::string id;
-  ASSERT_TRUE(m.create("", {*name_, ""}, so, 60000, "", soon(), &id).ok());
+  auto created = create_two_controllers(m, 60000, two);
+  ASSERT_TRUE(created.ok()) << created.status();
+  const std::string id = *created;
   auto a = m.join(id, "", {two[0].id}, "");
   ASSERT_TRUE(a.ok()) << a.status();
   EXPECT_EQ(a->credential.size(), 32u);
