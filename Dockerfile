@@ -8,7 +8,17 @@
 FROM debian:bookworm AS build
 COPY deploy/install-deps.sh /src/deploy/install-deps.sh
 RUN /src/deploy/install-deps.sh build && rm -rf /var/lib/apt/lists/*
-COPY . /src
+# Only what CMake reads: a new model or new scenarios (final stage) leave the compiled layers cached.
+COPY CMakeLists.txt /src/
+COPY proto /src/proto
+COPY engine /src/engine
+COPY server /src/server
+COPY client_examples /src/client_examples
+COPY tools /src/tools
+COPY training /src/training
+COPY bench /src/bench
+COPY tests /src/tests
+COPY python /src/python
 WORKDIR /src
 # ON: -march=native (only for hosts like the build machine); OFF: -march=x86-64-v3, runs on any AVX2 x86-64.
 ARG NATIVE=OFF

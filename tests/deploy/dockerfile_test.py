@@ -91,6 +91,15 @@ class DockerfileTest(unittest.TestCase):
             self.assertIn(f"add_executable({t} ", cmake)
             self.assertRegex(copy, rf"/src/build/\w+/{t}\b")
 
+    def test_build_stage_copies_sources_only(self):
+        # A new model or new scenarios must not invalidate the compiled layers: the build stage copies the folders
+        # CMake reads, and every folder the top-level CMakeLists.txt adds is among them.
+        copies = [a.split()[0] for i, a in self.stages[0][1] if i == "COPY"]
+        self.assertNotIn(".", copies)
+        self.assertFalse({"models", "data", "docs"} & set(copies), copies)
+        for sub in re.findall(r"add_subdirectory\((\w+)", read("CMakeLists.txt")):
+            self.assertIn(sub, copies, f"CMakeLists.txt adds {sub}/, which the build stage does not copy")
+
     def test_slim_non_root_image_with_its_own_health_probe(self):
         final = dict()
         for ins, args in self.stages[1][1]:
