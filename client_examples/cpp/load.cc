@@ -1,8 +1,9 @@
-// scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route]
+// scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] [--densify A]
 // N concurrent clients, each with its own session, each stepping M times as fast as the server answers (the ego
 // keeps its heading and speed). Reports steps per second over the whole run, per-step latency percentiles and
 // errors. --route: each client proposes its session id and sends it as x-session-id metadata on every call, for a
-// session-affine router (deploy/router/); the JSON then lists the ids.
+// session-affine router (deploy/router/); the JSON then lists the ids. --densify A: densify mode, the log's agents
+// topped up with sampled ones to A per session (the speed goals' 64-agent sessions).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -20,18 +21,21 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   client::Flags flags;
-  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario"}, {"json", "route"}, &flags)) {
+  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "densify"}, {"json", "route"}, &flags)) {
     std::fprintf(stderr,
-                 "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route]\n");
+                 "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] "
+                 "[--densify A]\n");
     return 2;
   }
   const int clients = client::flag_int(flags, "clients", 4);
   const int steps = client::flag_int(flags, "steps", 20);
+  const int densify = client::flag_int(flags, "densify", 0);
   const std::string target = client::flag_string(flags, "target", client::kDefaultTarget);
   std::string scenario = client::flag_string(flags, "scenario", "");
   const bool json = flags.switches.count("json") > 0;
   const bool route = flags.switches.count("route") > 0;
   if (clients < 1 || steps < 1) return std::fprintf(stderr, "--clients and --steps must be positive\n"), 2;
+  if (flags.values.count("densify") && densify < 1) return std::fprintf(stderr, "--densify must be positive\n"), 2;
   auto stub = client::connect(target);
   if (scenario.empty()) {
     auto st = client::first_scenario(*stub, &scenario);
@@ -55,6 +59,10 @@ int main(int argc, char** argv) {
       pb::CreateSessionRequest create;
       create.set_scenario_name(scenario);
       create.set_seed(static_cast<uint64_t>(c));
+      if (densify > 0) {
+        create.set_mode(pb::MODE_DENSIFY);
+        create.set_densify_target(densify);
+      }
       const std::string key = route ? client::new_session_id() : "";  // the routing key: the proposed id
       create.set_session_id(key);
       pb::CreateSessionResponse session;
@@ -94,7 +102,7 @@ int main(int argc, char** argv) {
   };
   const double sps = static_cast<double>(latencies_ms.size()) / seconds;
   if (json) {
-    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"errors", errors.load()},
+    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"densify", densify}, {"errors", errors.load()},
                                   {"steps_per_second", sps}, {"latency_ms_p50", pct(0.5)},
                                   {"latency_ms_p99", pct(0.99)}};
     if (route) out["session_ids"] = session_ids;
