@@ -47,6 +47,7 @@ int main(int argc, char** argv) {
   std::vector<double> latencies_ms;
   std::string first_error;
   std::vector<std::string> session_ids;
+  std::vector<int> last_tick_agents;  // agents in each session's last tick
   auto error = [&](const std::string& what, const grpc::Status& st) {
     errors++;
     std::lock_guard<std::mutex> l(mu);
@@ -91,6 +92,7 @@ int main(int argc, char** argv) {
       if (auto st = client::close_session(*stub, session.session_id(), key); !st.ok()) error("CloseSession", st);
       std::lock_guard<std::mutex> l(mu);
       if (route) session_ids.push_back(session.session_id());
+      last_tick_agents.push_back(tick.agents_size());
       latencies_ms.insert(latencies_ms.end(), mine.begin(), mine.end());
     });
   for (auto& t : threads) t.join();
@@ -101,10 +103,13 @@ int main(int argc, char** argv) {
     return latencies_ms[std::min(latencies_ms.size() - 1, static_cast<size_t>(p * latencies_ms.size()))];
   };
   const double sps = static_cast<double>(latencies_ms.size()) / seconds;
+  double agents_mean = 0;
+  for (int a : last_tick_agents) agents_mean += a;
+  if (!last_tick_agents.empty()) agents_mean /= static_cast<double>(last_tick_agents.size());
   if (json) {
     nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"densify", densify}, {"errors", errors.load()},
                                   {"steps_per_second", sps}, {"latency_ms_p50", pct(0.5)},
-                                  {"latency_ms_p99", pct(0.99)}};
+                                  {"latency_ms_p99", pct(0.99)}, {"agents_last_tick_mean", agents_mean}};
     if (route) out["session_ids"] = session_ids;
     std::puts(ss::json_text(out, -1).c_str());
   } else {

@@ -33,11 +33,26 @@ class ClientsTest(ServerTestCase):
                             "--json"], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         out = json.loads(r.stdout)
-        self.assertEqual(set(out), {"clients", "steps", "errors", "steps_per_second", "latency_ms_p50",
-                                    "latency_ms_p99"})
-        self.assertEqual((out["clients"], out["steps"], out["errors"]), (4, 3, 0))
+        self.assertEqual(set(out), {"clients", "steps", "densify", "errors", "steps_per_second", "latency_ms_p50",
+                                    "latency_ms_p99", "agents_last_tick_mean"})
+        self.assertEqual((out["clients"], out["steps"], out["densify"], out["errors"]), (4, 3, 0, 0))
         self.assertGreater(out["steps_per_second"], 0)
         self.assertLessEqual(out["latency_ms_p50"], out["latency_ms_p99"])
+        self.assertGreater(out["agents_last_tick_mean"], 0)
+
+    def test_cpp_load_generator_densifies(self):
+        # --densify A: densify-mode sessions topped up to A agents (the speed figures' 64-agent sessions).
+        args = [os.environ["SS_LOAD"], "--clients", "2", "--steps", "2", "--target", self.server.target, "--json"]
+        plain = json.loads(subprocess.run(args, capture_output=True, text=True, timeout=120, check=True).stdout)
+        r = subprocess.run(args + ["--densify", "40"], capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        dense = json.loads(r.stdout)
+        self.assertEqual((dense["densify"], dense["errors"]), (40, 0))
+        self.assertGreater(dense["agents_last_tick_mean"], plain["agents_last_tick_mean"])
+        self.assertGreaterEqual(dense["agents_last_tick_mean"], 30)
+        bad = subprocess.run(args + ["--densify", "0"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("--densify must be positive", bad.stderr)
 
     def test_routing_metadata(self):
         # What a session-affine router needs: with route=True the Python package proposes the id and sends it as
