@@ -5,14 +5,24 @@
 #include <chrono>
 #include <cstdio>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
 #include "bench/bench_world.h"
 #include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
 #include "nlohmann/json.hpp"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/commands.h"
+#include "tools/shared_flags.h"
+
+// bench_: simulate's --model, --scenario and --steps have other defaults.
+ABSL_FLAG(std::string, bench_model, "large", "large or small (random weights of that configuration), or a weight file");
+ABSL_FLAG(std::string, bench_scenario, ss::kBenchScenario, "the scenario file the sessions run on");
+ABSL_FLAG(int, bench_steps, 30, "timed steps per agent count, at least 1");
+ABSL_FLAG(int, long_steps, 1000, "steps of the long rollout whose session memory is measured, at least 1");
+ABSL_FLAG(std::string, kv_precision, "",
+          "fp32 or fp16: how keys and values are stored; default: $SCENESTREAMER_KV_PRECISION, else fp32");
 
 namespace ss::cli {
 namespace {
@@ -42,43 +52,38 @@ double gemm_gflops() {
 }
 
 int fail(const absl::Status& st) {
-  std::fprintf(stderr, "bench: %s\n", std::string(st.message()).c_str());
+  spdlog::error("bench: {}", std::string(st.message()));
   return 1;
 }
 
 }  // namespace
 
 int bench_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1, {"model", "scenario", "long-steps", "steps", "kv-precision"}, {"json", "help"});
-  if (!args.ok() || args->has("help") || !args->positional.empty()) {
-    if (!args.ok()) std::fprintf(stderr, "bench: %s\n", std::string(args.status().message()).c_str());
-    std::fputs("usage: scenestreamer bench [--json] [--model large|small|WEIGHTS] [--scenario FILE]\n"
-               "                           [--steps N (timed per agent count, default 30)] [--long-steps N (default 1000)]\n"
-               "                           [--kv-precision fp32|fp16 (default: $SCENESTREAMER_KV_PRECISION, else fp32)]\n",
-               args.ok() && args->has("help") ? stdout : stderr);
-    return args.ok() && args->has("help") ? 0 : 2;
-  }
-  int steps = 30, long_steps = 1000;
-  for (const auto& [flag, value] : {std::pair<const char*, int*>{"steps", &steps}, {"long-steps", &long_steps}}) {
-    if (args->has(flag) && (!absl::SimpleAtoi(args->get(flag), value) || *value < 1)) {
-      std::fprintf(stderr, "bench: --%s %s: expected a whole number of steps, at least 1\n", flag,
-                   args->get(flag).c_str());
-      return 2;
-    }
-  }
+  const Command command{"scenestreamer bench",
+                        "usage: scenestreamer bench [--json] [--model large|small|WEIGHTS] [--scenario FILE] [--steps N]\n"
+                        "                           [--long-steps N] [--kv-precision fp32|fp16]\n"
+                        "  Step latency by agent count, the incremental decoder against a full recompute at step 19,\n"
+                        "  session memory after a long rollout, KV bytes per token; one thread.\n",
+                        __FILE__,
+                        {flag(FLAGS_json)}};
+  CommandLine line;
+  if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
+  if (!line.positional().empty())
+    return usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
+  const int steps = absl::GetFlag(FLAGS_bench_steps), long_steps = absl::GetFlag(FLAGS_long_steps);
+  if (steps < 1) return usage_error(command, "--steps must be at least 1");
+  if (long_steps < 1) return usage_error(command, "--long-steps must be at least 1");
   ModelOptions options;
-  if (args->has("kv-precision")) {
-    auto p = kv_precision_by_name(args->get("kv-precision"));
-    if (!p.ok()) {
-      std::fprintf(stderr, "bench: --kv-precision: %s\n", std::string(p.status().message()).c_str());
-      return 2;
-    }
+  if (line.has(FLAGS_kv_precision)) {
+    auto p = kv_precision_by_name(absl::GetFlag(FLAGS_kv_precision));
+    if (!p.ok()) return usage_error(command, "--kv-precision: " + std::string(p.status().message()));
     options.kv_precision = *p;
   }
   enable_flush_to_zero();
-  auto world = make_bench_world(args->get("scenario", kBenchScenario), args->get("model", "large"), 16, options);
+  auto world = make_bench_world(absl::GetFlag(FLAGS_bench_scenario), absl::GetFlag(FLAGS_bench_model), 16, options);
   if (!world.ok()) return fail(world.status());
   const ModelConfig& c = world->model->config();
+  const bool json = absl::GetFlag(FLAGS_json);
   nlohmann::ordered_json out;
   out["model"] = c.name;
   out["threads"] = 1;
@@ -112,7 +117,7 @@ int bench_main(int argc, char** argv) {
     gflop[key] = step_gflop;
     achieved[key] = step_gflop * steps / (total_ms / 1e3);
     floor_ms[key] = step_gflop / peak * 1e3;
-    if (!args->has("json"))
+    if (!json)
       std::printf("step, %3d agents: p50 %.1f ms, p99 %.1f ms; %.3f GFLOP per step, %.1f GFLOP/s; %.1f ms at the GEMM peak\n",
                   agents, percentile(ms, 0.5), percentile(ms, 0.99), step_gflop, achieved[key].get<double>(),
                   floor_ms[key].get<double>());
@@ -149,7 +154,7 @@ int bench_main(int argc, char** argv) {
   out["step19_incremental_ms"] = inc_ms;
   out["step19_full_recompute_ms"] = full_ms;
   out["cached_vs_full_ratio"] = full_ms / inc_ms;
-  if (!args->has("json"))
+  if (!json)
     std::printf("step 19, 64 agents: incremental %.1f ms, full recompute %.1f ms: %.1fx\n", inc_ms, full_ms, full_ms / inc_ms);
 
   // Memory of a 64-agent session over a long rollout: flat once the window is full.
@@ -167,7 +172,7 @@ int bench_main(int argc, char** argv) {
   out["kv_bytes_per_token"] =
       2 * c.decoder_layers * c.d_model * (options.kv_precision == KvPrecision::fp16 ? sizeof(uint16_t) : sizeof(float));
   out["map_bytes_shared"] = world->map->bytes();
-  if (args->has("json")) {
+  if (json) {
     std::puts(json_text(out).c_str());
   } else {
     std::printf("64-agent session: %zu bytes after %d steps, %zu after %d steps (%zu cached tokens)\n", after_window,

@@ -6,8 +6,10 @@
 #include "absl/strings/str_cat.h"
 #include "engine/eval/submission.h"
 #include "engine/scenario/read.h"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/commands.h"
+#include "tools/shared_flags.h"
 
 namespace ss::cli {
 namespace {
@@ -21,24 +23,24 @@ constexpr const char* kUsage =
     "  become a Waymo Open Sim Agents Challenge submission in DIR (submission.binproto-00000-of-0000N), which\n"
     "  `eval --submission DIR` scores: each rollout is one joint scene of every agent valid at its current frame,\n"
     "  x, y, z, heading after it; an agent the rollout leaves without a state (it left the model's region) moves on\n"
-    "  at constant velocity, as in eval. --submission-metadata: the challenge's metadata fields as a JSON object.\n";
+    "  at constant velocity, as in eval.\n";
 
 int fail(const std::string& msg) {
-  std::fprintf(stderr, "convert: %s\n", msg.c_str());
+  spdlog::error("convert: {}", msg);
   return 1;
 }
 
-int to_submission(const Args& args) {
+int to_submission(const std::vector<std::string>& inputs) {
   SubmissionMetadata metadata;
-  if (args.has("submission-metadata")) {
-    auto m = read_submission_metadata(args.get("submission-metadata"));
+  if (const std::string path = absl::GetFlag(FLAGS_submission_metadata); !path.empty()) {
+    auto m = read_submission_metadata(path);
     if (!m.ok()) return fail(std::string(m.status().message()));
     metadata = std::move(*m);
   }
   std::vector<ScenarioRollouts> rollouts;  // by scenario id, in order of first appearance
   std::map<std::string, size_t> index;
   std::vector<Scenario> shapes;  // per scenario: id, frames and current frame (for challenge_problems)
-  for (const std::string& path : args.positional) {
+  for (const std::string& path : inputs) {
     auto files = list_scenario_files(path, false);
     if (!files.ok()) return fail(std::string(files.status().message()));
     for (const std::string& file : *files) {
@@ -66,7 +68,7 @@ int to_submission(const Args& args) {
       if (!read.ok()) return fail(std::string(read.status().message()));
     }
   }
-  const std::string dir = args.get("wosac-submission");
+  const std::string dir = absl::GetFlag(FLAGS_wosac_submission);
   if (auto st = write_submission(dir, rollouts, metadata); !st.ok()) return fail(std::string(st.message()));
   size_t scenes = 0;
   for (const ScenarioRollouts& r : rollouts) scenes += r.joint_scenes.size();
@@ -82,21 +84,19 @@ int to_submission(const Args& args) {
 }  // namespace
 
 int convert_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1, {"out", "wosac-submission", "submission-metadata"}, {"help"});
-  const bool ok = args.ok() && !args->has("help") && !args->positional.empty() &&
-                  args->has("out") != args->has("wosac-submission");
-  if (!ok) {
-    if (!args.ok()) std::fprintf(stderr, "convert: %s\n", std::string(args.status().message()).c_str());
-    else if (!args->has("help") && args->has("out") && args->has("wosac-submission"))
-      std::fprintf(stderr, "convert: give --out or --wosac-submission, not both\n");
-    std::fputs(kUsage, args.ok() && args->has("help") ? stdout : stderr);
-    return args.ok() && args->has("help") ? 0 : 2;
-  }
-  if (args->has("wosac-submission")) return to_submission(*args);
-  if (args->has("submission-metadata")) return fail("--submission-metadata goes with --wosac-submission");
-  auto scenarios = read_scenarios(args->positional);
+  const Command command{"scenestreamer convert", kUsage, __FILE__,
+                        {flag(FLAGS_out), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)}};
+  CommandLine line;
+  if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
+  if (line.positional().empty()) return usage_error(command, "no input given");
+  if (line.has(FLAGS_out) == line.has(FLAGS_wosac_submission))
+    return usage_error(command, line.has(FLAGS_out) ? "give --out or --wosac-submission, not both"
+                                                    : "give --out or --wosac-submission");
+  if (line.has(FLAGS_wosac_submission)) return to_submission(line.positional());
+  if (line.has(FLAGS_submission_metadata)) return fail("--submission-metadata goes with --wosac-submission");
+  auto scenarios = read_scenarios(line.positional());
   if (!scenarios.ok()) return fail(std::string(scenarios.status().message()));
-  const std::string out = args->get("out");
+  const std::string out = absl::GetFlag(FLAGS_out);
   if (auto st = write_scenarios_tfrecord(out, *scenarios); !st.ok()) return fail(std::string(st.message()));
   std::printf("wrote %zu scenarios to %s\n", scenarios->size(), out.c_str());
   return 0;

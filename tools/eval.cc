@@ -13,9 +13,8 @@
 #include <mutex>
 #include <optional>
 #include <thread>
-#include <type_traits>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
 #include "engine/eval/aggregate.h"
 #include "engine/eval/evaluate.h"
@@ -24,11 +23,33 @@
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/commands.h"
 #include "tools/eval/eval_compare.h"
 #include "tools/eval/eval_plots.h"
 #include "tools/eval/eval_report.h"
+#include "tools/shared_flags.h"
+
+ABSL_FLAG(std::string, data, "",
+          "WOMD TFRecords or GPUDrive/Nocturne JSON files, or directories of them (the paths after it up to the next "
+          "flag are data too)");
+ABSL_FLAG(int, rollouts, 4, "rollouts of each scenario, 1..1024");
+ABSL_FLAG(std::string, baseline, "",
+          "cv: constant velocity; log: replay of the logged future (the oracle); no model needed");
+// eval_: the other commands' --json is a switch.
+ABSL_FLAG(std::string, eval_json, "",
+          "the results as one JSON object, with per-scenario results ('-' for stdout; the table then goes to stderr)");
+ABSL_FLAG(std::string, plots, "", "a directory for SVG histograms of each feature, log vs rollouts");
+ABSL_FLAG(int, threads, 0, "worker threads, 1..1024; 0: the hardware's");
+ABSL_FLAG(std::string, compare, "",
+          "A.json (B.json follows): each metric's difference B - A of two --json results of the same scenarios and "
+          "--sdc rule, with a 95 % paired bootstrap interval over scenarios");
+ABSL_FLAG(int, bootstrap, ss::BootstrapOptions{}.resamples, "bootstrap resamples of --compare, 100..1000000");
+ABSL_FLAG(std::string, submission, "",
+          "score the rollouts of this submission (ours, or any model's) instead of running a policy: its scenarios "
+          "must be exactly those of --data (the logs), every rollout must hold every agent valid at the current "
+          "frame over the scenario's future; --sdc model only");
 
 namespace ss::cli {
 namespace {
@@ -47,66 +68,35 @@ constexpr const char* kUsage =
     "  (0-8 s, 8-16 s, 16 s to the end), the paper's motion metrics (ADE/FDE average and minimum over rollouts,\n"
     "  ADD/FDD diversity) and, in full mode, the initial-state MMD. Scenarios run in parallel; results do not depend\n"
     "  on the thread count (each rollout's seed comes from S, the scenario id and the rollout index).\n"
-    "  --data        WOMD TFRecords or GPUDrive/Nocturne JSON files, or directories of them\n"
-    "  --baseline    cv: constant velocity; log: replay of the logged future (the oracle); no model needed\n"
-    "  --sdc         model (default): the policy drives the SDC like every other agent and the SDC is evaluated\n"
-    "                (WOSAC's rule); log: the SDC follows its log, as an RL client's ego would, and is left out of\n"
-    "                the evaluated objects\n"
-    "  --json        the results as one JSON object, with per-scenario results ('-' for stdout; the table then goes\n"
-    "                to stderr)\n"
-    "  --plots DIR   SVG histograms of each feature, log vs rollouts\n"
-    "  --threads N   worker threads (default: the hardware's)\n"
-    "  --top-p P, --temperature T  the model's sampling (as a session's; defaults 0.8 and 0.7)\n"
-    "  --wosac-submission DIR  also write the rollouts as a Waymo Open Sim Agents Challenge submission\n"
-    "                (DIR/submission.binproto-00000-of-0000N, 32 scenarios per shard): every agent valid at the\n"
-    "                current frame, x, y, z, heading at 10 Hz after it; motion mode or --baseline cv, --sdc model.\n"
-    "                The rollouts are scored as the files hold them (float32), so scoring the files gives the\n"
-    "                same numbers. A scenario that ends at its current frame (the challenge's test set) is rolled\n"
-    "                out for 80 frames and written, not scored. --submission-metadata: a JSON object of the\n"
-    "                challenge's metadata fields (account_name, unique_method_name, authors, ...), copied into\n"
-    "                every shard\n"
-    "  --submission  score the rollouts of a submission (ours, or any model's) instead of running a policy: its\n"
-    "                scenarios must be exactly those of --data (the logs), every rollout must hold every agent\n"
-    "                valid at the current frame over the scenario's future; --sdc model only\n"
-    "  --compare     two --json results of the same scenarios and --sdc rule: each metric's difference B - A with a\n"
-    "                95 % paired bootstrap interval over scenarios (--bootstrap N resamples, default 10000; --seed S,\n"
-    "                default 1); --json OUT writes the comparison too\n";
+    "  --sdc model (WOSAC's rule) evaluates the SDC too; --sdc log leaves it out of the evaluated objects.\n"
+    "  --wosac-submission DIR: motion mode or --baseline cv, --sdc model; 32 scenarios per shard. The rollouts are\n"
+    "  scored as the files hold them (float32), so scoring the files gives the same numbers. A scenario that ends at\n"
+    "  its current frame (the challenge's test set) is rolled out for 80 frames and written, not scored.\n"
+    "  --compare: --seed defaults to 1; --json OUT writes the comparison too.\n";
 
 int fail(const std::string& msg) {
-  std::fprintf(stderr, "eval: %s\n", msg.c_str());
+  spdlog::error("eval: {}", msg);
   return 1;
 }
 
-template <typename T>
-bool parse_number(const Args& args, const char* flag, T* out) {
-  if (!args.has(flag)) return true;
-  if constexpr (std::is_floating_point_v<T>) {
-    if (absl::SimpleAtod(args.get(flag), out)) return true;
-  } else if (absl::SimpleAtoi(args.get(flag), out)) {
-    return true;
-  }
-  std::fprintf(stderr, "eval: --%s '%s' is not a %s\n", flag, args.get(flag).c_str(),
-               std::is_floating_point_v<T> ? "number" : "whole number");
-  return false;
-}
-
-int compare_main(const Args& args) {
-  for (const char* flag :
-       {"data", "model", "mode", "baseline", "sdc", "rollouts", "plots", "threads", "top-p", "temperature"})
-    if (args.has(flag)) return fail(absl::StrCat("--compare takes two result files: --", flag, " does not apply"));
-  if (args.positional.size() != 1)
-    return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + args.positional.size()));
-  CompareRequest request{args.get("compare"), args.positional[0], {}};
-  if (!parse_number(args, "bootstrap", &request.bootstrap.resamples) ||
-      !parse_number(args, "seed", &request.bootstrap.seed))
-    return 2;
+int compare_main(const CommandLine& line) {
+  const std::string other =
+      line.first_given({flag(FLAGS_data), flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_baseline), flag(FLAGS_sdc),
+                        flag(FLAGS_rollouts), flag(FLAGS_plots), flag(FLAGS_threads), flag(FLAGS_top_p),
+                        flag(FLAGS_temperature)});
+  if (!other.empty()) return fail(absl::StrCat("--compare takes two result files: ", other, " does not apply"));
+  if (line.positional().size() != 1)
+    return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + line.positional().size()));
+  CompareRequest request{absl::GetFlag(FLAGS_compare), line.positional()[0], {}};
+  request.bootstrap.resamples = absl::GetFlag(FLAGS_bootstrap);
+  if (line.has(FLAGS_seed)) request.bootstrap.seed = absl::GetFlag(FLAGS_seed);
   if (request.bootstrap.resamples < 100 || request.bootstrap.resamples > 1000000)
     return fail("--bootstrap must be in 100..1000000");
   auto report = compare_eval_files(request);
   if (!report.ok()) return fail(std::string(report.status().message()));
   std::fputs(report->table.c_str(), stdout);
-  if (args.has("json")) {
-    const std::string out = args.get("json");
+  if (line.has(FLAGS_eval_json)) {
+    const std::string out = absl::GetFlag(FLAGS_eval_json);
     std::ofstream f(out, std::ios::binary | std::ios::trunc);
     f << json_text(report->json) << "\n";
     f.close();
@@ -118,70 +108,68 @@ int compare_main(const Args& args) {
 }  // namespace
 
 int eval_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1,
-                         {"data", "model", "mode", "rollouts", "seed", "baseline", "sdc", "json", "plots", "threads",
-                          "compare", "bootstrap", "wosac-submission", "submission-metadata", "submission", "top-p",
-                          "temperature"},
-                         {"help"});
-  if (args.ok() && !args->has("help") && args->has("compare")) return compare_main(*args);
-  if (args.ok() && args->has("bootstrap") && !args->has("help")) return fail("--bootstrap goes with --compare");
-  if (!args.ok() || args->has("help") || !args->has("data") || !args->has("json")) {
-    if (!args.ok()) std::fprintf(stderr, "eval: %s\n", std::string(args.status().message()).c_str());
-    else if (!args->has("help")) std::fprintf(stderr, "eval: --%s is required\n", args->has("data") ? "json" : "data");
-    std::fputs(kUsage, args.ok() && args->has("help") ? stdout : stderr);
-    return args.ok() && args->has("help") ? 0 : 2;
-  }
+  const Command command{"scenestreamer eval", kUsage, __FILE__,
+                        {flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_seed), flag(FLAGS_sdc), flag(FLAGS_top_p),
+                         flag(FLAGS_temperature), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)}};
+  CommandLine line;
+  if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
+  if (line.has(FLAGS_compare)) return compare_main(line);
+  if (line.has(FLAGS_bootstrap)) return fail("--bootstrap goes with --compare");
+  if (!line.has(FLAGS_data)) return usage_error(command, "--data is required");
+  if (!line.has(FLAGS_eval_json)) return usage_error(command, "--json is required");
   // --data takes the paths after it up to the next flag (the parser leaves them positional).
-  std::vector<std::string> paths = {args->get("data")};
-  paths.insert(paths.end(), args->positional.begin(), args->positional.end());
+  std::vector<std::string> paths = {absl::GetFlag(FLAGS_data)};
+  paths.insert(paths.end(), line.positional().begin(), line.positional().end());
 
   EvalOptions options;
   EvalRunInfo run;
-  if (args->has("baseline")) {
-    const std::string b = args->get("baseline");
+  if (line.has(FLAGS_baseline)) {
+    const std::string b = absl::GetFlag(FLAGS_baseline);
     if (b == "cv") options.policy = EvalPolicy::constant_velocity;
     else if (b == "log") options.policy = EvalPolicy::log_replay;
     else return fail("--baseline '" + b + "' is not cv or log");
-    for (const char* flag : {"model", "mode", "top-p", "temperature"})
-      if (args->has(flag)) return fail(absl::StrCat("--baseline runs without a model: drop --", flag));
+    const std::string model_flag =
+        line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p), flag(FLAGS_temperature)});
+    if (!model_flag.empty()) return fail("--baseline runs without a model: drop " + model_flag);
   }
-  if (args->has("submission")) {
-    for (const char* flag : {"baseline", "model", "mode", "rollouts", "seed", "wosac-submission", "submission-metadata",
-                             "top-p", "temperature"})
-      if (args->has(flag))
-        return fail(absl::StrCat("--submission scores the rollouts it holds: --", flag, " does not apply"));
-    if (args->get("sdc", "model") != "model")
+  const std::string sdc = absl::GetFlag(FLAGS_sdc), mode = absl::GetFlag(FLAGS_mode);
+  if (line.has(FLAGS_submission)) {
+    const std::string other = line.first_given(
+        {flag(FLAGS_baseline), flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_rollouts), flag(FLAGS_seed),
+         flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata), flag(FLAGS_top_p), flag(FLAGS_temperature)});
+    if (!other.empty()) return fail("--submission scores the rollouts it holds: " + other + " does not apply");
+    if (sdc != "model")
       return fail("--submission: a submission's rollouts drive every agent, the SDC included (--sdc model only)");
     options.policy = EvalPolicy::submission;
   }
-  const bool write_submission = args->has("wosac-submission");
-  if (args->has("submission-metadata") && !write_submission)
+  const bool write_submission = line.has(FLAGS_wosac_submission);
+  const std::string submission_dir = absl::GetFlag(FLAGS_wosac_submission);
+  if (line.has(FLAGS_submission_metadata) && !write_submission)
     return fail("--submission-metadata goes with --wosac-submission");
   if (write_submission) {
     if (options.policy == EvalPolicy::log_replay)
       return fail("--wosac-submission: log replay leaves agents without a state where the log has none; a "
                   "submission holds every agent at every frame (use the model or --baseline cv)");
-    if (args->get("mode", "motion") != "motion")
+    if (mode != "motion")
       return fail("--wosac-submission takes motion mode: the challenge resimulates the log's agents, and full mode's "
                   "generated agents have no place in a submission");
-    if (args->get("sdc", "model") != "model")
+    if (sdc != "model")
       return fail("--wosac-submission: the challenge's rule is that the simulation drives every agent, the SDC "
                   "included (--sdc model)");
     options.submission_precision = true;
   }
-  const std::string sdc = args->get("sdc", "model");
   if (sdc == "model") options.sdc = SdcRule::model;
   else if (sdc == "log") options.sdc = SdcRule::log;
   else return fail("--sdc '" + sdc + "' is not model or log");
-  const std::string mode = args->get("mode", "motion");
   if (mode == "motion") options.session.mode = SessionMode::motion;
   else if (mode == "full") options.session.mode = SessionMode::full;
   else return fail("--mode '" + mode + "' is not motion or full");
-  int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  if (!parse_number(*args, "rollouts", &options.rollouts) || !parse_number(*args, "seed", &options.session.seed) ||
-      !parse_number(*args, "threads", &threads) || !parse_number(*args, "top-p", &options.session.top_p) ||
-      !parse_number(*args, "temperature", &options.session.temperature))
-    return 2;
+  options.rollouts = absl::GetFlag(FLAGS_rollouts);
+  options.session.seed = absl::GetFlag(FLAGS_seed);
+  options.session.top_p = absl::GetFlag(FLAGS_top_p);
+  options.session.temperature = absl::GetFlag(FLAGS_temperature);
+  int threads = absl::GetFlag(FLAGS_threads);
+  if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (!(options.session.top_p > 0 && options.session.top_p <= 1)) return fail("--top-p must be in (0, 1]");
   if (!(options.session.temperature > 0) || !std::isfinite(options.session.temperature))
     return fail("--temperature must be positive");
@@ -191,7 +179,7 @@ int eval_main(int argc, char** argv) {
   enable_flush_to_zero();
   std::shared_ptr<const Model> model;
   if (options.policy == EvalPolicy::model) {
-    auto path = model_path(*args);
+    auto path = model_path();
     if (!path.ok()) return fail(std::string(path.status().message()));
     auto weights = load_weights(*path);
     if (!weights.ok()) return fail(std::string(weights.status().message()));
@@ -201,8 +189,8 @@ int eval_main(int argc, char** argv) {
     model = *m;
   }
   SubmissionMetadata metadata;
-  if (args->has("submission-metadata")) {
-    auto m = read_submission_metadata(args->get("submission-metadata"));
+  if (line.has(FLAGS_submission_metadata)) {
+    auto m = read_submission_metadata(absl::GetFlag(FLAGS_submission_metadata));
     if (!m.ok()) return fail(std::string(m.status().message()));
     metadata = std::move(*m);
   }
@@ -224,7 +212,7 @@ int eval_main(int argc, char** argv) {
   std::vector<const ScenarioRollouts*> submitted(all.size(), nullptr);
   Submission submission;
   if (options.policy == EvalPolicy::submission) {
-    auto read = read_submission({args->get("submission")});
+    auto read = read_submission({absl::GetFlag(FLAGS_submission)});
     if (!read.ok()) return fail(std::string(read.status().message()));
     submission = std::move(*read);
     std::map<std::string, const ScenarioRollouts*> by_id;
@@ -254,8 +242,8 @@ int eval_main(int argc, char** argv) {
   std::vector<ScenarioRollouts> written;  // kept for challenge_problems: trajectories dropped once written
   if (write_submission) {
     std::error_code ec;
-    std::filesystem::create_directories(args->get("wosac-submission"), ec);
-    if (ec) return fail(absl::StrCat("cannot create --wosac-submission ", args->get("wosac-submission"), ": ", ec.message()));
+    std::filesystem::create_directories(submission_dir, ec);
+    if (ec) return fail(absl::StrCat("cannot create --wosac-submission ", submission_dir, ": ", ec.message()));
   }
 
   // A bounded pool: each worker takes the next scenario; results land in the scenario's slot, so their order (and,
@@ -270,7 +258,7 @@ int eval_main(int argc, char** argv) {
     for (size_t i = next++; i < all.size(); i = next++) {
       std::vector<JointScene> scenes;
       if (submitted[i]) {
-        auto given = scenes_from_rollouts(*all[i], *submitted[i], args->get("submission"));
+        auto given = scenes_from_rollouts(*all[i], *submitted[i], absl::GetFlag(FLAGS_submission));
         if (!given.ok()) {
           results[i] = given.status();
         } else {
@@ -287,7 +275,7 @@ int eval_main(int argc, char** argv) {
       }
       const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       std::lock_guard<std::mutex> lock(log_mu);
-      std::fprintf(stderr, "eval: %s %s (%.0f s)\n", all[i]->id.c_str(), results[i]->ok() ? "done" : "failed", secs);
+      spdlog::info("eval: {} {} ({:.0f} s)", all[i]->id, results[i]->ok() ? "done" : "failed", secs);
       if (!rollouts) continue;
       to_write[i] = std::move(rollouts);
       const int shard = static_cast<int>(i / kScenariosPerShard);
@@ -297,7 +285,7 @@ int eval_main(int argc, char** argv) {
         batch.push_back(std::move(*to_write[k]));
         to_write[k].reset();
       }
-      const std::string path = submission_shard_path(args->get("wosac-submission"), shard, shards);
+      const std::string path = submission_shard_path(submission_dir, shard, shards);
       if (auto st = write_submission_shard(path, batch, metadata); !st.ok()) write_error = st;
       for (ScenarioRollouts& r : batch)
         written.push_back({r.scenario_id, std::vector<std::vector<SimulatedTrajectory>>(r.joint_scenes.size())});
@@ -321,7 +309,7 @@ int eval_main(int argc, char** argv) {
   run.seed = options.session.seed;
   run.top_p = options.session.top_p, run.temperature = options.session.temperature;
   const std::string json = json_text(eval_json(run, d, evaluations)) + "\n";
-  const std::string out = args->get("json");
+  const std::string out = absl::GetFlag(FLAGS_eval_json);
   if (out == "-") {
     std::fputs(json.c_str(), stdout);
   } else {
@@ -334,7 +322,7 @@ int eval_main(int argc, char** argv) {
   if (write_submission) {
     std::FILE* text = out == "-" ? stderr : stdout;
     std::fprintf(text, "\nsubmission: %zu scenarios x %d rollouts in %d shard(s) in %s\n", written.size(),
-                 options.rollouts, shards, args->get("wosac-submission").c_str());
+                 options.rollouts, shards, submission_dir.c_str());
     if (history_only)
       std::fprintf(text, "  %d scenario(s) end at their current frame (the challenge's test set): rolled out for %d "
                    "frames and written, not scored (no logged future)\n", history_only, kChallengeFutureFrames);
@@ -343,14 +331,13 @@ int eval_main(int argc, char** argv) {
     for (const std::string& p : challenge_problems(written, logs, metadata))
       std::fprintf(text, "  not yet valid for the challenge: %s\n", p.c_str());
   }
-  if (args->has("plots")) {
+  if (const std::string plots = absl::GetFlag(FLAGS_plots); !plots.empty()) {
     std::vector<std::string> written;
     const std::string label = options.policy == EvalPolicy::model ? absl::StrCat("model, ", mode, " mode")
                                                                   : std::string(eval_policy_name(options.policy));
-    if (auto st = write_feature_plots(args->get("plots"), label, d, &written); !st.ok())
+    if (auto st = write_feature_plots(plots, label, d, &written); !st.ok())
       return fail(std::string(st.message()));
-    std::fprintf(out == "-" ? stderr : stdout, "\nplots: %zu SVG files in %s\n", written.size(),
-                 args->get("plots").c_str());
+    std::fprintf(out == "-" ? stderr : stdout, "\nplots: %zu SVG files in %s\n", written.size(), plots.c_str());
   }
   return 0;
 }

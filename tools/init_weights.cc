@@ -5,40 +5,36 @@
 #include <filesystem>
 #include <string>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
 #include "engine/model/weights.h"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/commands.h"
+#include "tools/shared_flags.h"
+
+ABSL_FLAG(std::string, config, "", "the model configuration: small or large (required)");
 
 namespace ss::cli {
 
 int init_weights_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1, {"config", "seed", "out"}, {"help"});
-  const bool help = args.ok() && args->has("help");
-  if (!args.ok() || help || !args->positional.empty() || !args->has("config") || !args->has("out")) {
-    if (!args.ok()) std::fprintf(stderr, "init-weights: %s\n", std::string(args.status().message()).c_str());
-    else if (!help && !args->positional.empty())
-      std::fprintf(stderr, "init-weights: unexpected argument '%s'\n", args->positional[0].c_str());
-    std::fputs("usage: scenestreamer init-weights --config small|large [--seed S] --out FILE\n"
-               "  writes random weights (N(0, 0.02); norms ones, biases zeros) as a safetensors file;\n"
-               "  the same seed gives the same bytes (default seed 0)\n",
-               help ? stdout : stderr);
-    return help ? 0 : 2;
-  }
-  auto config = model_config_by_name(args->get("config"));
-  if (!config.ok()) {
-    std::fprintf(stderr, "init-weights: %s\n", std::string(config.status().message()).c_str());
-    return 2;
-  }
-  uint64_t seed = 0;
-  if (const std::string s = args->get("seed", "0"); !absl::SimpleAtoi(s, &seed)) {
-    std::fprintf(stderr, "init-weights: --seed '%s' is not a non-negative 64-bit integer\n", s.c_str());
-    return 2;
-  }
-  const std::string out = args->get("out");
+  const Command command{"scenestreamer init-weights",
+                        "usage: scenestreamer init-weights --config small|large [--seed S] --out FILE\n"
+                        "  writes random weights (N(0, 0.02); norms ones, biases zeros) as a safetensors file;\n"
+                        "  the same seed gives the same bytes\n",
+                        __FILE__,
+                        {flag(FLAGS_seed), flag(FLAGS_out)}};
+  CommandLine line;
+  if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
+  if (!line.positional().empty())
+    return usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
+  if (!line.has(FLAGS_config) || !line.has(FLAGS_out)) return usage_error(command, "--config and --out are required");
+  auto config = model_config_by_name(absl::GetFlag(FLAGS_config));
+  if (!config.ok()) return usage_error(command, config.status().message());
+  const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  const std::string out = absl::GetFlag(FLAGS_out);
   const Weights w = init_weights(*config, seed);
   if (auto st = save_weights(out, w); !st.ok()) {
-    std::fprintf(stderr, "init-weights: %s\n", std::string(st.message()).c_str());
+    spdlog::error("init-weights: {}", std::string(st.message()));
     return 1;
   }
   std::error_code ec;

@@ -1,7 +1,10 @@
 // scenestreamer: one binary, one subcommand per job.
 #include <cstdio>
 #include <cstring>
+#include <memory>
 
+#include "spdlog/sinks/stdout_color_sinks.h"
+#include "spdlog/spdlog.h"
 #include "tools/commands.h"
 
 namespace {
@@ -28,6 +31,10 @@ int main(int argc, char** argv) {
     std::fputs(kUsage, argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;
   }
+  // Diagnostics and progress go to stderr through spdlog, in the server's format: stdout holds a command's output
+  // (tables, JSON, an SVG under `render --out -`).
+  spdlog::set_default_logger(
+      std::make_shared<spdlog::logger>("", std::make_shared<spdlog::sinks::stderr_color_sink_mt>()));
   const char* cmd = argv[1];
   if (!std::strcmp(cmd, "inspect")) return ss::cli::inspect_main(argc - 1, argv + 1);
   if (!std::strcmp(cmd, "convert")) return ss::cli::convert_main(argc - 1, argv + 1);

@@ -1,18 +1,26 @@
 // scenestreamer render FILE [--scenario ID | --index I] [--step T | --animate] [--radius M] [--out OUT.svg]
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <string>
 
+#include "absl/flags/flag.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "engine/render/render.h"
 #include "engine/scenario/read.h"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/commands.h"
+#include "tools/shared_flags.h"
+
+// render_: simulate's and bench's --scenario is a file, dataset sumo's --radius another radius.
+ABSL_FLAG(std::string, render_scenario, "", "the scenario with this id; default: the file's first");
+ABSL_FLAG(int, step, -1, "the frame to draw, from 0; -1: the scenario's current frame");
+ABSL_FLAG(bool, animate, false, "an animated SVG of every frame instead of a still");
+ABSL_FLAG(double, render_radius, ss::RenderOptions{}.radius_m, "half the side of the square view around the SDC, metres");
 
 namespace ss::cli {
 namespace {
@@ -20,34 +28,13 @@ namespace {
 constexpr const char* kUsage =
     "usage: scenestreamer render FILE [--scenario ID | --index I] [--step T | --animate] [--radius M] [--out OUT.svg]\n"
     "  FILE: a GPUDrive/Nocturne .json or a WOMD TFRecord (a recorded scenario or a rollout)\n"
-    "  --scenario ID   the scenario with this id (default: the file's first)\n"
-    "  --index I       the file's I-th scenario, from 0\n"
-    "  --step T        draw frame T (default: the scenario's current frame)\n"
-    "  --animate       an animated SVG of every frame instead of a still\n"
-    "  --radius M      half the side of the square view around the SDC, metres (default 80)\n"
-    "  --out OUT.svg   where to write (default: SCENARIO_ID.svg, or SCENARIO_ID-anim.svg; '-' for stdout)\n";
+    "  --out: default SCENARIO_ID.svg, or SCENARIO_ID-anim.svg; '-' for stdout\n";
 
-absl::StatusOr<int> parse_int(const std::string& flag, const std::string& text) {
-  int v = 0;
-  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size() || text.empty())
-    return absl::InvalidArgumentError(absl::StrCat("bad --", flag, " '", text, "': expected a whole number"));
-  return v;
-}
-
-absl::StatusOr<double> parse_positive(const std::string& flag, const std::string& text) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0' || !std::isfinite(v) || v <= 0)
-    return absl::InvalidArgumentError(absl::StrCat("bad --", flag, " '", text, "': expected a positive number"));
-  return v;
-}
-
-absl::StatusOr<const Scenario*> pick_scenario(const std::vector<Scenario>& all, const Args& args,
+absl::StatusOr<const Scenario*> pick_scenario(const std::vector<Scenario>& all, const CommandLine& line,
                                               const std::string& file) {
   if (all.empty()) return absl::NotFoundError(absl::StrCat(file, ": holds no scenarios"));
-  if (args.has("scenario")) {
-    const std::string id = args.get("scenario");
+  if (line.has(FLAGS_render_scenario)) {
+    const std::string id = absl::GetFlag(FLAGS_render_scenario);
     for (const Scenario& s : all)
       if (s.id == id) return &s;
     std::string ids;
@@ -55,13 +42,12 @@ absl::StatusOr<const Scenario*> pick_scenario(const std::vector<Scenario>& all, 
     if (all.size() > 10) absl::StrAppend(&ids, ", ... (", all.size(), " in all)");
     return absl::NotFoundError(absl::StrCat("unknown scenario id '", id, "' in ", file, "; it holds: ", ids));
   }
-  if (args.has("index")) {
-    auto index = parse_int("index", args.get("index"));
-    if (!index.ok()) return index.status();
-    if (*index < 0 || *index >= static_cast<int>(all.size()))
-      return absl::OutOfRangeError(absl::StrCat("--index ", *index, " is outside ", file, ", which holds ", all.size(),
+  if (line.has(FLAGS_index)) {
+    const int index = absl::GetFlag(FLAGS_index);
+    if (index < 0 || index >= static_cast<int>(all.size()))
+      return absl::OutOfRangeError(absl::StrCat("--index ", index, " is outside ", file, ", which holds ", all.size(),
                                                 " scenario", all.size() == 1 ? "" : "s"));
-    return &all[*index];
+    return &all[index];
   }
   return &all[0];
 }
@@ -83,49 +69,43 @@ absl::Status write_file(const std::string& path, const std::string& text) {
   return absl::OkStatus();
 }
 
-absl::Status run(const Args& args) {
-  const std::string file = args.positional[0];
-  if (args.has("scenario") && args.has("index"))
+absl::Status run(const CommandLine& line) {
+  const std::string file = line.positional()[0];
+  if (line.has(FLAGS_render_scenario) && line.has(FLAGS_index))
     return absl::InvalidArgumentError("give --scenario or --index, not both");
-  if (args.has("step") && args.has("animate")) return absl::InvalidArgumentError("give --step or --animate, not both");
+  if (line.has(FLAGS_step) && line.has(FLAGS_animate))
+    return absl::InvalidArgumentError("give --step or --animate, not both");
   RenderOptions options;
-  options.animate = args.has("animate");
-  if (args.has("step")) {
-    auto step = parse_int("step", args.get("step"));
-    if (!step.ok()) return step.status();
-    if (*step < 0) return absl::InvalidArgumentError(absl::StrCat("bad --step ", *step, ": frames count from 0"));
-    options.step = *step;
-  }
-  if (args.has("radius")) {
-    auto radius = parse_positive("radius", args.get("radius"));
-    if (!radius.ok()) return radius.status();
-    options.radius_m = *radius;
-  }
+  options.animate = absl::GetFlag(FLAGS_animate);
+  options.step = absl::GetFlag(FLAGS_step);
+  if (options.step < -1) return absl::InvalidArgumentError(absl::StrCat("bad --step ", options.step, ": frames count from 0"));
+  options.radius_m = absl::GetFlag(FLAGS_render_radius);
+  if (!std::isfinite(options.radius_m) || options.radius_m <= 0)
+    return absl::InvalidArgumentError(
+        absl::StrCat("bad --radius '", options.radius_m, "': expected a positive number"));
   auto scenarios = read_scenarios(file);
   if (!scenarios.ok()) return scenarios.status();
-  auto scenario = pick_scenario(*scenarios, args, file);
+  auto scenario = pick_scenario(*scenarios, line, file);
   if (!scenario.ok()) return scenario.status();
   auto svg = render_scene_svg(**scenario, options);
   if (!svg.ok()) return svg.status();
-  const std::string out = args.get("out", (*scenario)->id + (options.animate ? "-anim.svg" : ".svg"));
+  const std::string out = line.has(FLAGS_out) ? absl::GetFlag(FLAGS_out)
+                                              : (*scenario)->id + (options.animate ? "-anim.svg" : ".svg");
   if (auto st = write_file(out, *svg); !st.ok()) return st;
-  if (out != "-") std::fprintf(stderr, "wrote %s (%zu bytes)\n", out.c_str(), svg->size());
+  if (out != "-") spdlog::info("wrote {} ({} bytes)", out, svg->size());
   return absl::OkStatus();
 }
 
 }  // namespace
 
 int render_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1, {"scenario", "index", "step", "radius", "out"}, {"animate", "help"});
-  const bool help = args.ok() && args->has("help");
-  if (!args.ok() || help || args->positional.size() != 1) {
-    if (!args.ok()) std::fprintf(stderr, "render: %s\n", std::string(args.status().message()).c_str());
-    else if (!help && args->positional.size() > 1) std::fputs("render: one FILE at a time\n", stderr);
-    std::fputs(kUsage, help ? stdout : stderr);
-    return help ? 0 : 2;
-  }
-  if (auto st = run(*args); !st.ok()) {
-    std::fprintf(stderr, "render: %s\n", std::string(st.message()).c_str());
+  const Command command{"scenestreamer render", kUsage, __FILE__, {flag(FLAGS_index), flag(FLAGS_out)}};
+  CommandLine line;
+  if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
+  if (line.positional().size() != 1)
+    return usage_error(command, line.positional().empty() ? "no FILE given" : "one FILE at a time");
+  if (auto st = run(line); !st.ok()) {
+    spdlog::error("render: {}", std::string(st.message()));
     return 1;
   }
   return 0;

@@ -2,7 +2,7 @@
 //                        [--rollout K] --out FILE
 #include <cstdio>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
 #include "engine/eval/evaluate.h"
 #include "engine/eval/model_rollout.h"
 #include "engine/model/linalg.h"
@@ -11,8 +11,18 @@
 #include "engine/sim/map_cache.h"
 #include "engine/sim/rollout_export.h"
 #include "engine/sim/session.h"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/commands.h"
+#include "tools/shared_flags.h"
+
+// simulate_: bench's --scenario and --steps have other defaults, render's --scenario another meaning.
+ABSL_FLAG(std::string, simulate_scenario, "", "the scenario file: WOMD TFRecord or GPUDrive/Nocturne JSON (required)");
+ABSL_FLAG(int, simulate_steps, -1, "model steps to roll out, 0..100000; -1: to the scenario's last frame");
+ABSL_FLAG(int, rollout, 0,
+          "K: with --seed S, the session's seed is the one `eval --seed S` gives the scenario's K-th rollout");
+ABSL_FLAG(int, max_agents, ss::SessionOptions{}.max_agents, "the cap on agents alive at once");
+ABSL_FLAG(int, densify_target, ss::SessionOptions{}.densify_target, "densify mode: agents to reach at the first step");
 
 namespace ss::cli {
 namespace {
@@ -30,65 +40,55 @@ constexpr const char* kUsage =
     "  --sdc model (default): the model drives the SDC like every other agent; no logged pose after the current\n"
     "        frame reaches the session. log: the SDC replays its logged poses while the log lasts (then keeps its last\n"
     "        control), as an RL client's ego would.\n"
-    "  --seed S --rollout K (default 0): the session's seed is the one `eval --seed S` gives the scenario's K-th\n"
-    "        rollout, so simulate reproduces eval's rollouts one by one (and `convert --wosac-submission` turns them\n"
-    "        into the submission `eval --wosac-submission` writes).\n";
+    "  --seed S --rollout K: the session's seed is the one `eval --seed S` gives the scenario's K-th rollout, so\n"
+    "        simulate reproduces eval's rollouts one by one (and `convert --wosac-submission` turns them into the\n"
+    "        submission `eval --wosac-submission` writes).\n";
 
 int fail(const std::string& msg) {
-  std::fprintf(stderr, "simulate: %s\n", msg.c_str());
+  spdlog::error("simulate: {}", msg);
   return 1;
 }
 
 }  // namespace
 
 int simulate_main(int argc, char** argv) {
-  auto args = parse_args(argc, argv, 1,
-                         {"scenario", "model", "mode", "sdc", "steps", "seed", "out", "index", "top-p", "temperature",
-                          "max-agents", "densify-target", "rollout"},
-                         {"help"});
-  if (!args.ok() || args->has("help") || !args->positional.empty() || !args->has("scenario") ||
-      !args->has("out")) {
-    if (!args.ok()) std::fprintf(stderr, "simulate: %s\n", std::string(args.status().message()).c_str());
-    else if (!args->positional.empty()) std::fprintf(stderr, "simulate: unexpected argument '%s'\n", args->positional[0].c_str());
-    std::fputs(kUsage, args.ok() && args->has("help") ? stdout : stderr);
-    return args.ok() && args->has("help") ? 0 : 2;
-  }
+  const Command command{"scenestreamer simulate", kUsage, __FILE__,
+                        {flag(FLAGS_model), flag(FLAGS_out), flag(FLAGS_mode), flag(FLAGS_sdc), flag(FLAGS_seed),
+                         flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature)}};
+  CommandLine line;
+  if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
+  if (!line.positional().empty())
+    return usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
+  if (!line.has(FLAGS_simulate_scenario) || !line.has(FLAGS_out))
+    return usage_error(command, "--scenario and --out are required");
   SessionOptions o;
-  const std::string mode = args->get("mode", "motion");
+  const std::string mode = absl::GetFlag(FLAGS_mode);
   if (mode == "motion") o.mode = SessionMode::motion;
   else if (mode == "full") o.mode = SessionMode::full;
   else if (mode == "densify") o.mode = SessionMode::densify;
   else return fail("--mode '" + mode + "' is not motion, full or densify");
-  const std::string sdc = args->get("sdc", "model");
+  const std::string sdc = absl::GetFlag(FLAGS_sdc);
   SdcRule sdc_rule = SdcRule::model;
   if (sdc == "log") sdc_rule = SdcRule::log;
   else if (sdc != "model") return fail("--sdc '" + sdc + "' is not model or log");
-  int steps = -1, index = 0, rollout = 0;
-  auto number = [&](const char* flag, auto* out) {
-    if (!args->has(flag)) return true;
-    using T = std::remove_pointer_t<decltype(out)>;
-    bool ok;
-    if constexpr (std::is_floating_point_v<T>) ok = absl::SimpleAtod(args->get(flag), out);
-    else ok = absl::SimpleAtoi(args->get(flag), out);
-    if (!ok) std::fprintf(stderr, "simulate: --%s '%s' is not a number\n", flag, args->get(flag).c_str());
-    return ok;
-  };
-  if (!number("steps", &steps) || !number("seed", &o.seed) || !number("index", &index) ||
-      !number("rollout", &rollout) || !number("top-p", &o.top_p) ||
-      !number("temperature", &o.temperature) || !number("max-agents", &o.max_agents) ||
-      !number("densify-target", &o.densify_target))
-    return 2;
-  if (args->has("steps") && (steps < 0 || steps > 100000)) return fail("--steps must be in 0..100000");
+  o.seed = absl::GetFlag(FLAGS_seed);
+  o.top_p = absl::GetFlag(FLAGS_top_p);
+  o.temperature = absl::GetFlag(FLAGS_temperature);
+  o.max_agents = absl::GetFlag(FLAGS_max_agents);
+  o.densify_target = absl::GetFlag(FLAGS_densify_target);
+  const int steps = absl::GetFlag(FLAGS_simulate_steps), index = absl::GetFlag(FLAGS_index),
+            rollout = absl::GetFlag(FLAGS_rollout);
+  if (steps < -1 || steps > 100000) return fail("--steps must be in 0..100000 (or -1: to the last frame)");
   if (rollout < 0 || rollout > 1000000) return fail("--rollout must be in 0..1000000");
 
   enable_flush_to_zero();
-  auto path = model_path(*args);
+  auto path = model_path();
   if (!path.ok()) return fail(std::string(path.status().message()));
   auto weights = load_weights(*path);
   if (!weights.ok()) return fail(std::string(weights.status().message()));
   auto model = Model::create(std::move(*weights));
   if (!model.ok()) return fail(std::string(model.status().message()));
-  auto scenarios = read_scenarios(args->get("scenario"));
+  auto scenarios = read_scenarios(absl::GetFlag(FLAGS_simulate_scenario));
   if (!scenarios.ok()) return fail(std::string(scenarios.status().message()));
   if (index < 0 || index >= static_cast<int>(scenarios->size()))
     return fail("--index " + std::to_string(index) + " is outside the file's " + std::to_string(scenarios->size()) +
@@ -103,11 +103,11 @@ int simulate_main(int argc, char** argv) {
   if (!results.ok()) return fail(std::string(results.status().message()));
   auto out = rollout_to_scenario(*scenario, *results);
   if (!out.ok()) return fail(std::string(out.status().message()));
-  if (auto st = write_scenarios_tfrecord(args->get("out"), {*out}); !st.ok()) return fail(std::string(st.message()));
+  if (auto st = write_scenarios_tfrecord(absl::GetFlag(FLAGS_out), {*out}); !st.ok()) return fail(std::string(st.message()));
   std::printf("simulated %s (%s mode, --sdc %s, seed %llu, rollout %d): %zu steps, %zu agents at the end, %zu tracks "
               "in all -> %s\n",
               scenario->id.c_str(), mode.c_str(), sdc.c_str(), static_cast<unsigned long long>(seed), rollout,
-              results->size() - 1, results->back().agents.size(), out->tracks.size(), args->get("out").c_str());
+              results->size() - 1, results->back().agents.size(), out->tracks.size(), absl::GetFlag(FLAGS_out).c_str());
   return 0;
 }
 

@@ -1,45 +1,65 @@
 // scenestreamer-train: trains SceneStreamer in libtorch and exports the engine's weight file.
 //   scenestreamer-train --config small|large --data DIR... --out DIR [--resume] [options]
-//   scenestreamer-train export --checkpoint DIR/checkpoint.pt --out model.safetensors
+//   scenestreamer-train export --checkpoint DIR/checkpoint.pt --out model.safetensors   (export_command.cc)
+//   scenestreamer-train plot --run DIR --out curves.svg                                  (plot_command.cc)
 #include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <string>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
 #include "absl/strings/str_split.h"
-#include "tools/cli_args.h"
-#include "training/plot.h"
+#include "tools/command_line.h"
+#include "training/commands.h"
 #include "training/trainer.h"
+
+namespace {
+const ss::train::TrainOptions kDefaults;
+}  // namespace
+
+ABSL_FLAG(std::string, config, kDefaults.config, "model configuration: small or large");
+ABSL_FLAG(std::string, data, "", "real WOMD scenarios to train on (TFRecord or JSON files or directories, comma-separated)");
+ABSL_FLAG(std::string, synthetic, "", "SUMO-generated scenarios (`scenestreamer dataset sumo`), comma-separated");
+ABSL_FLAG(std::string, val, "", "validation scenarios, comma-separated (never trained on; a scenario id in both is an error)");
+ABSL_FLAG(std::string, out, "", "the run directory (required)");
+ABSL_FLAG(bool, resume, false, "continue the run in --out from its checkpoint");
+ABSL_FLAG(double, real_fraction, kDefaults.real_fraction, "share of samples drawn from --data");
+ABSL_FLAG(int64_t, steps, kDefaults.steps, "optimizer steps");
+ABSL_FLAG(int64_t, stage1_steps, kDefaults.stage1_steps, "steps training the motion and light heads only");
+ABSL_FLAG(int, batch, kDefaults.batch, "scenarios per optimizer step");
+ABSL_FLAG(double, lr, kDefaults.lr, "peak learning rate (cosine decay after the warm-up)");
+ABSL_FLAG(int64_t, warmup, kDefaults.warmup, "warm-up steps");
+ABSL_FLAG(double, weight_decay, kDefaults.weight_decay, "AdamW weight decay");
+ABSL_FLAG(double, clip, kDefaults.clip, "gradient norm clip");
+ABSL_FLAG(int, max_agents, kDefaults.max_agents, "agents per sample");
+ABSL_FLAG(int, max_map_segments, kDefaults.max_map_segments, "map segments per sample");
+ABSL_FLAG(uint64_t, seed, kDefaults.seed, "random seed");
+ABSL_FLAG(int, threads, kDefaults.threads, "torch threads");
+ABSL_FLAG(int64_t, log_every, kDefaults.log_every, "steps between train_log.csv rows");
+ABSL_FLAG(int64_t, val_every, kDefaults.val_every, "steps between validations");
+ABSL_FLAG(int, val_scenarios, kDefaults.val_scenarios, "scenarios of each validation");
+ABSL_FLAG(int64_t, checkpoint_every, kDefaults.checkpoint_every, "steps between checkpoints (also every 5 minutes)");
+ABSL_FLAG(int64_t, eval_every, kDefaults.eval_every, "steps between short `scenestreamer eval` runs of the val data; 0: none");
+ABSL_FLAG(std::string, eval_tool, "", "the scenestreamer binary those evals run");
+ABSL_FLAG(int, eval_scenarios, kDefaults.eval_scenarios, "val scenarios of each eval");
+ABSL_FLAG(int64_t, stop_after, kDefaults.stop_after,
+          "stop after N steps in this process, with a checkpoint (--resume continues); 0: no limit");
 
 namespace {
 
 constexpr const char* kUsage =
-    "usage: scenestreamer-train --config small|large --data PATH[,PATH...] --out DIR [--resume] [options]\n"
+    "usage: scenestreamer-train --config small|large --data PATH[,PATH...] --out DIR [--resume] [flags]\n"
     "       scenestreamer-train export --checkpoint DIR/checkpoint.pt --out model.safetensors\n"
     "       scenestreamer-train plot --run DIR --out curves.svg   (loss curves per head from the run's logs)\n"
-    "  --data PATHS        real WOMD scenarios to train on (TFRecord or JSON files or directories, comma-separated)\n"
-    "  --synthetic PATHS   SUMO-generated scenarios (`scenestreamer dataset sumo`)\n"
-    "  --val PATHS         validation scenarios (never trained on; a scenario id in both is an error)\n"
-    "  --real-fraction F   share of samples drawn from --data (default 0.7)\n"
-    "  --steps N --stage1-steps N --batch B --lr LR --warmup N --weight-decay W --clip C\n"
-    "  --max-agents N --max-map-segments N --seed S --threads N\n"
-    "  --log-every N --val-every N --val-scenarios N --checkpoint-every N\n"
-    "  --eval-every N --eval-tool PATH --eval-scenarios N   a short `scenestreamer eval` of the val data\n"
-    "  --stop-after N      stop after N steps in this process (checkpointed; --resume continues)\n"
     "  The run directory holds checkpoint.pt (model, optimizer, schedule, data position), latest.safetensors,\n"
-    "  train_log.csv and val_log.csv. SIGINT or SIGTERM stops after the current step with a checkpoint.\n";
+    "  train_log.csv and val_log.csv. SIGINT or SIGTERM stops after the current step with a checkpoint.\n"
+    "  `scenestreamer-train export --help` and `plot --help` show those commands' flags.\n";
 
 std::vector<std::string> paths(const std::string& s) {
   std::vector<std::string> out;
   for (auto p : absl::StrSplit(s, ',', absl::SkipEmpty())) out.emplace_back(p);
   return out;
-}
-
-int usage_error(const std::string& why) {
-  std::fprintf(stderr, "scenestreamer-train: %s\n%s", why.c_str(), kUsage);
-  return 2;
 }
 
 }  // namespace
@@ -51,65 +71,40 @@ int main(int argc, char** argv) {
     setenv("OPENBLAS_CORETYPE", ss::train::openblas_coretype(), 1);
     execv("/proc/self/exe", argv);
   }
-  using ss::cli::parse_args;
-  if (argc > 1 && std::string(argv[1]) == "export") {
-    auto args = parse_args(argc, argv, 2, {"checkpoint", "out"}, {});
-    if (!args.ok()) return usage_error(std::string(args.status().message()));
-    if (!args->has("checkpoint") || !args->has("out")) return usage_error("export needs --checkpoint and --out");
-    if (auto s = ss::train::export_checkpoint(args->get("checkpoint"), args->get("out")); !s.ok()) {
-      std::fprintf(stderr, "scenestreamer-train export: %s\n", std::string(s.message()).c_str());
-      return 1;
-    }
-    return 0;
-  }
-  if (argc > 1 && std::string(argv[1]) == "plot") {
-    auto args = parse_args(argc, argv, 2, {"run", "out"}, {});
-    if (!args.ok()) return usage_error(std::string(args.status().message()));
-    if (!args->has("run") || !args->has("out")) return usage_error("plot needs --run and --out");
-    if (auto s = ss::train::plot_run(args->get("run"), args->get("out")); !s.ok()) {
-      std::fprintf(stderr, "scenestreamer-train plot: %s\n", std::string(s.message()).c_str());
-      return 1;
-    }
-    return 0;
-  }
-  auto args = parse_args(argc, argv, 1,
-                         {"config", "data", "synthetic", "val", "out", "real-fraction", "steps", "stage1-steps", "batch",
-                          "lr", "warmup", "weight-decay", "clip", "max-agents", "max-map-segments", "seed", "threads",
-                          "log-every", "val-every", "val-scenarios", "checkpoint-every", "eval-every", "eval-tool",
-                          "eval-scenarios", "stop-after"},
-                         {"resume", "help"});
-  if (!args.ok()) return usage_error(std::string(args.status().message()));
-  if (args->has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  if (!args->positional.empty()) return usage_error("unexpected argument '" + args->positional[0] + "'");
+  if (argc > 1 && std::string(argv[1]) == "export") return ss::train::export_main(argc - 1, argv + 1);
+  if (argc > 1 && std::string(argv[1]) == "plot") return ss::train::plot_main(argc - 1, argv + 1);
+  const ss::cli::Command command{"scenestreamer-train", kUsage, __FILE__, {}};
+  ss::cli::CommandLine line;
+  if (auto exit_code = ss::cli::parse_command(command, argc, argv, &line)) return *exit_code;
+  if (!line.positional().empty())
+    return ss::cli::usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   ss::train::TrainOptions o;
-  o.config = args->get("config", o.config);
-  o.real_data = paths(args->get("data"));
-  o.synthetic_data = paths(args->get("synthetic"));
-  o.val_data = paths(args->get("val"));
-  o.out = args->get("out");
-  o.resume = args->has("resume");
-  o.eval_tool = args->get("eval-tool");
-  auto number = [&](const char* flag, auto& dst) {
-    if (!args->has(flag)) return true;
-    const std::string v = args->get(flag);
-    bool ok = false;
-    if constexpr (std::is_floating_point_v<std::decay_t<decltype(dst)>>) ok = absl::SimpleAtod(v, &dst);
-    else ok = absl::SimpleAtoi(v, &dst);
-    if (!ok) std::fprintf(stderr, "scenestreamer-train: --%s '%s' is not a number\n", flag, v.c_str());
-    return ok;
-  };
-  const bool ok = number("real-fraction", o.real_fraction) && number("steps", o.steps) &&
-                  number("stage1-steps", o.stage1_steps) && number("batch", o.batch) && number("lr", o.lr) &&
-                  number("warmup", o.warmup) && number("weight-decay", o.weight_decay) && number("clip", o.clip) &&
-                  number("max-agents", o.max_agents) && number("max-map-segments", o.max_map_segments) &&
-                  number("seed", o.seed) && number("threads", o.threads) && number("log-every", o.log_every) &&
-                  number("val-every", o.val_every) && number("val-scenarios", o.val_scenarios) &&
-                  number("checkpoint-every", o.checkpoint_every) && number("eval-every", o.eval_every) &&
-                  number("eval-scenarios", o.eval_scenarios) && number("stop-after", o.stop_after);
-  if (!ok) return 2;
+  o.config = absl::GetFlag(FLAGS_config);
+  o.real_data = paths(absl::GetFlag(FLAGS_data));
+  o.synthetic_data = paths(absl::GetFlag(FLAGS_synthetic));
+  o.val_data = paths(absl::GetFlag(FLAGS_val));
+  o.out = absl::GetFlag(FLAGS_out);
+  o.resume = absl::GetFlag(FLAGS_resume);
+  o.real_fraction = absl::GetFlag(FLAGS_real_fraction);
+  o.steps = absl::GetFlag(FLAGS_steps);
+  o.stage1_steps = absl::GetFlag(FLAGS_stage1_steps);
+  o.batch = absl::GetFlag(FLAGS_batch);
+  o.lr = absl::GetFlag(FLAGS_lr);
+  o.warmup = absl::GetFlag(FLAGS_warmup);
+  o.weight_decay = absl::GetFlag(FLAGS_weight_decay);
+  o.clip = absl::GetFlag(FLAGS_clip);
+  o.max_agents = absl::GetFlag(FLAGS_max_agents);
+  o.max_map_segments = absl::GetFlag(FLAGS_max_map_segments);
+  o.seed = absl::GetFlag(FLAGS_seed);
+  o.threads = absl::GetFlag(FLAGS_threads);
+  o.log_every = absl::GetFlag(FLAGS_log_every);
+  o.val_every = absl::GetFlag(FLAGS_val_every);
+  o.val_scenarios = absl::GetFlag(FLAGS_val_scenarios);
+  o.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
+  o.eval_every = absl::GetFlag(FLAGS_eval_every);
+  o.eval_tool = absl::GetFlag(FLAGS_eval_tool);
+  o.eval_scenarios = absl::GetFlag(FLAGS_eval_scenarios);
+  o.stop_after = absl::GetFlag(FLAGS_stop_after);
   if (auto s = ss::train::run_training(o); !s.ok()) {
     std::fprintf(stderr, "scenestreamer-train: %s\n", std::string(s.message()).c_str());
     return 1;

@@ -58,7 +58,7 @@ fails() {  # fails EXPECTED_MESSAGE ARGS...
   grep -qF -- "$msg" "$tmp/err" || { echo "render $*: expected '$msg', got:" >&2; cat "$tmp/err" >&2; exit 1; }
 }
 fails "step 91 is outside scenario 637f20cafde22ff8" "$tfrecord" --step 91 --out "$tmp/x.svg"
-fails "bad --step 'soon'" "$tfrecord" --step soon --out "$tmp/x.svg"
+fails "--step: Illegal value 'soon'" "$tfrecord" --step soon --out "$tmp/x.svg"
 fails "bad --radius '-3'" "$tfrecord" --radius -3 --out "$tmp/x.svg"
 fails "not both" "$tfrecord" --step 3 --animate --out "$tmp/x.svg"
 fails "unknown scenario id 'nope'" "$tfrecord" --scenario nope --out "$tmp/x.svg"

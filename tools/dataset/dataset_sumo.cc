@@ -3,6 +3,7 @@
 // writes them into TFRecord shards (each validated once written) and a MANIFEST. Job i's seed depends only on S and
 // i, so the dataset is the same bytes whatever the number of workers.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -10,14 +11,16 @@
 #include <map>
 #include <thread>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "engine/base/rng.h"
 #include "engine/io/file_io.h"
 #include "engine/io/json_text.h"
 #include "nlohmann/json.hpp"
-#include "tools/cli_args.h"
+#include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 #include "tools/dataset/dataset_commands.h"
 #include "tools/dataset/job.h"
 #include "tools/dataset/job_context.h"
@@ -26,6 +29,27 @@
 #include "tools/dataset/shard_writer.h"
 #include "tools/dataset/subprocess.h"
 #include "tools/dataset/sumo_tools.h"
+#include "tools/shared_flags.h"
+
+ABSL_FLAG(int, scenarios, 0, "scenarios to generate (required)");
+ABSL_FLAG(std::string, networks, absl::StrJoin(ss::dataset::kNetworkKinds, ","),
+          "network kinds, used in turn, from grid, spider, rand, osm");
+// dataset_sumo_: render's --radius is its view.
+ABSL_FLAG(double, dataset_sumo_radius, ss::WindowOptions{}.radius, "agents are tracked within M metres of the ego");
+ABSL_FLAG(double, map_radius, 0, "map features within M metres of the ego; 0: --radius + 50");
+ABSL_FLAG(int, workers, 0, "parallel SUMO jobs; 0: the number of hardware threads");
+ABSL_FLAG(double, warmup, 240, "simulated seconds before recording");
+ABSL_FLAG(double, record, 90, "recorded seconds per SUMO run, at least 9.1 (one window)");
+ABSL_FLAG(int, egos_per_window, ss::WindowOptions{}.egos_per_window,
+          "scenarios cut per 9.1 s window, around egos 100 m apart");
+ABSL_FLAG(int, shard_size, 250, "scenarios per TFRecord shard");
+ABSL_FLAG(std::string, sumo_bin, "", "directory of sumo, netgenerate, netconvert; default: PATH");
+ABSL_FLAG(std::string, sumo_home, "/usr/share/sumo", "SUMO_HOME, for randomTrips.py and the OSM networks");
+ABSL_FLAG(std::string, python, "/usr/bin/python3", "Python for randomTrips.py");
+ABSL_FLAG(std::string, tmp, "", "where job directories are made; default: $TMPDIR or /tmp");
+ABSL_FLAG(bool, keep_temp, false, "keep the job directories (for debugging)");
+ABSL_FLAG(int, first_job, 0, "start at job K instead of 0 (to rerun the job an error names)");
+ABSL_FLAG(bool, quiet, false, "no progress lines");
 
 namespace ss::dataset {
 namespace {
@@ -33,25 +57,9 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kUsage =
-    "usage: scenestreamer dataset sumo --out DIR --scenarios N --seed S [options]\n"
+    "usage: scenestreamer dataset sumo --out DIR --scenarios N --seed S [flags]\n"
     "  Generates N WOMD scenarios (9.1 s at 10 Hz, current frame 10) with SUMO into DIR/sumo.tfrecord-*-of-*\n"
-    "  and DIR/MANIFEST (JSON: counts by type and network, seeds, shards, validation).\n"
-    "options:\n"
-    "  --networks LIST     network kinds, used in turn: grid,spider,rand,osm (default all four)\n"
-    "  --radius M          agents are tracked within M metres of the ego (default 100)\n"
-    "  --map-radius M      map features within M metres of the ego (default radius + 50)\n"
-    "  --workers K         parallel SUMO jobs (default: the number of hardware threads)\n"
-    "  --warmup S          simulated seconds before recording (default 240)\n"
-    "  --record S          recorded seconds per SUMO run (default 90)\n"
-    "  --egos-per-window K scenarios cut per 9.1 s window, around egos 100 m apart (default 4)\n"
-    "  --shard-size K      scenarios per TFRecord shard (default 250)\n"
-    "  --sumo-bin DIR      directory of sumo, netgenerate, netconvert (default: PATH)\n"
-    "  --sumo-home DIR     SUMO_HOME, for randomTrips.py and the OSM networks (default /usr/share/sumo)\n"
-    "  --python FILE       Python for randomTrips.py (default /usr/bin/python3)\n"
-    "  --tmp DIR           where job directories are made (default: $TMPDIR or /tmp)\n"
-    "  --keep-temp         keep the job directories (for debugging)\n"
-    "  --first-job K       start at job K instead of 0 (to rerun the job an error names)\n"
-    "  --quiet             no progress lines\n";
+    "  and DIR/MANIFEST (JSON: counts by type and network, seeds, shards, validation).\n";
 
 // A job whose run yields no scenario (a gridlocked network, say) is normal now and then; this many in a row means
 // the settings cannot work.
@@ -71,56 +79,52 @@ struct Options {
   int first_job = 0;
 };
 
-absl::Status bad_flag(const std::string& flag, const std::string& value, const std::string& want) {
-  return absl::InvalidArgumentError(absl::StrCat("--", flag, " ", value, ": ", want));
+absl::Status bad_flag(const std::string& flag, const std::string& want) {
+  return absl::InvalidArgumentError(absl::StrCat("--", flag, ": ", want));
 }
 
-absl::StatusOr<Options> parse_options(const cli::Args& a) {
+absl::StatusOr<Options> parse_options(const cli::CommandLine& line) {
   Options o;
-  for (const char* required : {"out", "scenarios", "seed"})
-    if (!a.has(required)) return absl::InvalidArgumentError(absl::StrCat("--", required, " is required"));
-  o.out = a.get("out");
-  if (!absl::SimpleAtoi(a.get("scenarios"), &o.scenarios) || o.scenarios < 1)
-    return bad_flag("scenarios", a.get("scenarios"), "want a positive integer");
-  if (!absl::SimpleAtoi(a.get("seed"), &o.seed)) return bad_flag("seed", a.get("seed"), "want a non-negative integer");
-  if (a.has("networks")) {
-    o.networks.clear();
-    for (absl::string_view n : absl::StrSplit(a.get("networks"), ',')) {
-      const std::string name(n);
-      if (std::find(kNetworkKinds.begin(), kNetworkKinds.end(), name) == kNetworkKinds.end())
-        return bad_flag("networks", a.get("networks"), absl::StrCat("unknown kind \"", name, "\" (grid, spider, rand, osm)"));
-      o.networks.push_back(name);
-    }
+  if (!line.has(FLAGS_out)) return absl::InvalidArgumentError("--out is required");
+  if (!line.has(FLAGS_scenarios)) return absl::InvalidArgumentError("--scenarios is required");
+  if (!line.has(FLAGS_seed)) return absl::InvalidArgumentError("--seed is required");
+  o.out = absl::GetFlag(FLAGS_out);
+  o.scenarios = absl::GetFlag(FLAGS_scenarios);
+  if (o.scenarios < 1) return bad_flag("scenarios", "want a positive integer");
+  o.seed = absl::GetFlag(FLAGS_seed);
+  o.networks.clear();
+  for (absl::string_view n : absl::StrSplit(absl::GetFlag(FLAGS_networks), ',')) {
+    const std::string name(n);
+    if (std::find(kNetworkKinds.begin(), kNetworkKinds.end(), name) == kNetworkKinds.end())
+      return bad_flag("networks", absl::StrCat("unknown kind \"", name, "\" (grid, spider, rand, osm)"));
+    o.networks.push_back(name);
   }
   const unsigned hw = std::thread::hardware_concurrency();
-  o.workers = hw ? static_cast<int>(hw) : 1;
-  if (a.has("workers") && (!absl::SimpleAtoi(a.get("workers"), &o.workers) || o.workers < 1))
-    return bad_flag("workers", a.get("workers"), "want a positive integer");
-  if (a.has("shard-size") && (!absl::SimpleAtoi(a.get("shard-size"), &o.shard_size) || o.shard_size < 1))
-    return bad_flag("shard-size", a.get("shard-size"), "want a positive integer");
-  auto positive = [&](const char* flag, double* v) -> absl::Status {
-    if (a.has(flag) && (!absl::SimpleAtod(a.get(flag), v) || !(*v > 0)))
-      return bad_flag(flag, a.get(flag), "want a positive number");
-    return absl::OkStatus();
-  };
-  if (auto st = positive("radius", &o.windows.radius); !st.ok()) return st;
-  o.windows.map_radius = o.windows.radius + 50;
-  if (auto st = positive("map-radius", &o.windows.map_radius); !st.ok()) return st;
-  if (auto st = positive("warmup", &o.warmup); !st.ok()) return st;
-  if (auto st = positive("record", &o.record); !st.ok()) return st;
-  if (o.record < 9.1) return bad_flag("record", a.get("record"), "want at least 9.1 s (one window)");
-  if (a.has("egos-per-window") &&
-      (!absl::SimpleAtoi(a.get("egos-per-window"), &o.windows.egos_per_window) || o.windows.egos_per_window < 1))
-    return bad_flag("egos-per-window", a.get("egos-per-window"), "want a positive integer");
-  o.sumo_bin = a.get("sumo-bin");
-  o.sumo_home = a.get("sumo-home", o.sumo_home);
-  o.python = a.get("python", o.python);
+  o.workers = absl::GetFlag(FLAGS_workers);
+  if (o.workers < 0) return bad_flag("workers", "want a positive integer, or 0 for the hardware's threads");
+  if (o.workers == 0) o.workers = hw ? static_cast<int>(hw) : 1;
+  o.shard_size = absl::GetFlag(FLAGS_shard_size);
+  if (o.shard_size < 1) return bad_flag("shard-size", "want a positive integer");
+  o.windows.radius = absl::GetFlag(FLAGS_dataset_sumo_radius);
+  o.windows.map_radius = absl::GetFlag(FLAGS_map_radius);
+  if (o.windows.map_radius == 0) o.windows.map_radius = o.windows.radius + 50;
+  o.warmup = absl::GetFlag(FLAGS_warmup);
+  o.record = absl::GetFlag(FLAGS_record);
+  for (auto [flag, v] : {std::pair<const char*, double>{"radius", o.windows.radius}, {"map-radius", o.windows.map_radius},
+                         {"warmup", o.warmup}, {"record", o.record}})
+    if (!(v > 0) || !std::isfinite(v)) return bad_flag(flag, "want a positive number");
+  if (o.record < 9.1) return bad_flag("record", "want at least 9.1 s (one window)");
+  o.windows.egos_per_window = absl::GetFlag(FLAGS_egos_per_window);
+  if (o.windows.egos_per_window < 1) return bad_flag("egos-per-window", "want a positive integer");
+  o.sumo_bin = absl::GetFlag(FLAGS_sumo_bin);
+  o.sumo_home = absl::GetFlag(FLAGS_sumo_home);
+  o.python = absl::GetFlag(FLAGS_python);
   const char* tmpdir = std::getenv("TMPDIR");
-  o.tmp = a.get("tmp", tmpdir && *tmpdir ? tmpdir : "/tmp");
-  o.keep_temp = a.has("keep-temp");
-  if (a.has("first-job") && (!absl::SimpleAtoi(a.get("first-job"), &o.first_job) || o.first_job < 0))
-    return bad_flag("first-job", a.get("first-job"), "want a non-negative integer");
-  o.quiet = a.has("quiet");
+  o.tmp = line.has(FLAGS_tmp) ? absl::GetFlag(FLAGS_tmp) : tmpdir && *tmpdir ? tmpdir : "/tmp";
+  o.keep_temp = absl::GetFlag(FLAGS_keep_temp);
+  o.first_job = absl::GetFlag(FLAGS_first_job);
+  if (o.first_job < 0) return bad_flag("first-job", "want a non-negative integer");
+  o.quiet = absl::GetFlag(FLAGS_quiet);
   return o;
 }
 
@@ -168,11 +172,11 @@ int run(const Options& o) {
   const char* path_env = std::getenv("PATH");
   auto tools = find_sumo_tools(o.sumo_bin, path_env ? path_env : "", o.sumo_home, o.python);
   if (!tools.ok()) {
-    std::fprintf(stderr, "dataset sumo: step check: %s\n", std::string(tools.status().message()).c_str());
+    spdlog::error("dataset sumo: step check: {}", std::string(tools.status().message()));
     return 1;
   }
   if (auto st = check_out_dir(o.out); !st.ok()) {
-    std::fprintf(stderr, "dataset sumo: %s\n", std::string(st.message()).c_str());
+    spdlog::error("dataset sumo: {}", std::string(st.message()));
     return 1;
   }
   const std::string version = sumo_version(*tools, o.tmp);
@@ -203,7 +207,7 @@ int run(const Options& o) {
       auto r = pool.next();
       if (!r.ok()) {
         pool.stop();
-        std::fprintf(stderr, "dataset sumo: %s\n", std::string(r.status().message()).c_str());
+        spdlog::error("dataset sumo: {}", std::string(r.status().message()));
         return 1;
       }
       const int take = std::min<int>(static_cast<int>(r->records.size()), o.scenarios - total);
@@ -212,7 +216,7 @@ int run(const Options& o) {
       for (int i = 0; i < take; ++i) {
         if (auto st = writer.add(std::move(r->records[i]), r->ids[i], r->fidelity[i]); !st.ok()) {
           pool.stop();
-          std::fprintf(stderr, "dataset sumo: %s\n", std::string(st.message()).c_str());
+          spdlog::error("dataset sumo: {}", std::string(st.message()));
           return 1;
         }
       }
@@ -232,26 +236,25 @@ int run(const Options& o) {
         const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         double job_seconds = 0;
         for (const auto& [step, s] : r->seconds) job_seconds += s;
-        std::fprintf(stderr, "job %d %-6s %3zu scenarios (%d dropped) in %.1f s (sumo %.1f s)  total %d/%d  %.0f s  %s%s\n",
-                     r->index, r->network.c_str(), r->records.size(), r->dropped_collision + r->dropped_teleport + r->dropped_implausible,
+        spdlog::info("job {} {:<6} {:3} scenarios ({} dropped) in {:.1f} s (sumo {:.1f} s)  total {}/{}  {:.0f} s  {}{}",
+                     r->index, r->network, r->records.size(), r->dropped_collision + r->dropped_teleport + r->dropped_implausible,
                      job_seconds, r->seconds.count("sumo") ? r->seconds.at("sumo") : 0.0, total, o.scenarios, elapsed,
-                     r->network_description.c_str(),
-                     r->kept_dir.empty() ? "" : (" [" + r->kept_dir + "]").c_str());
+                     r->network_description, r->kept_dir.empty() ? "" : " [" + r->kept_dir + "]");
       }
       empty_in_a_row = r->records.empty() ? empty_in_a_row + 1 : 0;
       if (empty_in_a_row >= kMaxEmptyJobsInARow) {
         pool.stop();
-        std::fprintf(stderr,
-                     "dataset sumo: %d jobs in a row gave no scenario (last: job %d, seed %llu, network %s): no moving "
-                     "vehicle stays in the network for 9.1 s, or every window holds a collision, teleport or implausible motion\n",
-                     empty_in_a_row, r->index, static_cast<unsigned long long>(r->seed), r->network.c_str());
+        spdlog::error("dataset sumo: {} jobs in a row gave no scenario (last: job {}, seed {}, network {}): no moving "
+                      "vehicle stays in the network for 9.1 s, or every window holds a collision, teleport or implausible "
+                      "motion",
+                      empty_in_a_row, r->index, r->seed, r->network);
         return 1;
       }
     }
     pool.stop();
   }
   if (auto st = writer.finish(); !st.ok()) {
-    std::fprintf(stderr, "dataset sumo: %s\n", std::string(st.message()).c_str());
+    spdlog::error("dataset sumo: {}", std::string(st.message()));
     return 1;
   }
 
@@ -278,7 +281,7 @@ int run(const Options& o) {
   m["jobs"] = jobs;
   const std::string manifest = o.out + "/MANIFEST";
   if (auto st = file_write_atomically(manifest, json_text(m) + "\n"); !st.ok()) {
-    std::fprintf(stderr, "dataset sumo: %s\n", std::string(st.message()).c_str());
+    spdlog::error("dataset sumo: {}", std::string(st.message()));
     return 1;
   }
   const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -295,25 +298,14 @@ int run(const Options& o) {
 }  // namespace
 
 int sumo_main(int argc, char** argv) {
-  auto args = cli::parse_args(argc, argv, 1,
-                              {"out", "scenarios", "seed", "networks", "radius", "map-radius", "workers", "warmup",
-                               "record", "egos-per-window", "shard-size", "sumo-bin", "sumo-home", "python", "tmp",
-                               "first-job"},
-                              {"keep-temp", "quiet", "help"});
-  if (!args.ok() || args->has("help")) {
-    if (!args.ok()) std::fprintf(stderr, "dataset sumo: %s\n", std::string(args.status().message()).c_str());
-    std::fputs(kUsage, args.ok() ? stdout : stderr);
-    return args.ok() ? 0 : 2;
-  }
-  if (!args->positional.empty()) {
-    std::fprintf(stderr, "dataset sumo: unexpected argument %s\n%s", args->positional[0].c_str(), kUsage);
-    return 2;
-  }
-  auto o = parse_options(*args);
-  if (!o.ok()) {
-    std::fprintf(stderr, "dataset sumo: %s\n%s", std::string(o.status().message()).c_str(), kUsage);
-    return 2;
-  }
+  const cli::Command command{"scenestreamer dataset sumo", kUsage, __FILE__,
+                             {cli::flag(FLAGS_out), cli::flag(FLAGS_seed)}};
+  cli::CommandLine line;
+  if (auto exit_code = cli::parse_command(command, argc, argv, &line)) return *exit_code;
+  if (!line.positional().empty())
+    return cli::usage_error(command, "unexpected argument " + line.positional()[0]);
+  auto o = parse_options(line);
+  if (!o.ok()) return cli::usage_error(command, o.status().message());
   return run(*o);
 }
 

@@ -1,0 +1,39 @@
+#include "tools/shared_flags.h"
+
+#include <filesystem>
+
+#include "absl/flags/flag.h"
+#include "absl/strings/str_cat.h"
+#include "engine/sim/session_types.h"
+
+ABSL_FLAG(std::string, model, "", "model weights (safetensors); default: models/default.safetensors if it exists");
+ABSL_FLAG(uint64_t, seed, 0, "random seed: the same seed gives the same output");
+ABSL_FLAG(bool, json, false, "print one JSON object instead of text");
+ABSL_FLAG(std::string, out, "", "where to write");
+ABSL_FLAG(int, index, 0, "the file's I-th scenario, from 0");
+ABSL_FLAG(std::string, mode, "motion",
+          "motion: the model moves the log's agents; full: the model creates the agents itself, and new ones may "
+          "enter; densify: the log's agents and new ones up to --densify-target (simulate only)");
+ABSL_FLAG(std::string, sdc, "model",
+          "model: the model drives the SDC like every other agent (WOSAC's rule); log: the SDC follows its logged "
+          "poses, as an RL client's ego would");
+ABSL_FLAG(double, top_p, ss::SessionOptions{}.top_p, "the model's nucleus sampling of motion tokens, in (0, 1]");
+ABSL_FLAG(double, temperature, ss::SessionOptions{}.temperature, "the model's sampling temperature of every token");
+ABSL_FLAG(std::string, wosac_submission, "",
+          "write the rollouts as a Waymo Open Sim Agents Challenge submission in this directory "
+          "(submission.binproto-00000-of-0000N)");
+ABSL_FLAG(std::string, submission_metadata, "",
+          "a JSON object of the challenge's metadata fields (account_name, unique_method_name, authors, ...), "
+          "copied into every shard; with --wosac-submission");
+
+namespace ss::cli {
+
+absl::StatusOr<std::string> model_path() {
+  if (!absl::GetFlag(FLAGS_model).empty()) return absl::GetFlag(FLAGS_model);
+  std::error_code ec;
+  if (std::filesystem::exists(kDefaultModel, ec)) return std::string(kDefaultModel);
+  return absl::NotFoundError(absl::StrCat("no --model given and no default model at ", kDefaultModel,
+                                          " (none ships until its training run ends: models/MODEL_CARD.md)"));
+}
+
+}  // namespace ss::cli

@@ -1,0 +1,30 @@
+// The flags several `scenestreamer` commands take, each defined once (tools/shared_flags.cc); a command lists the
+// ones it takes in its Command (tools/command_line.h).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "absl/flags/declare.h"
+#include "absl/status/statusor.h"
+
+ABSL_DECLARE_FLAG(std::string, model);                // simulate, eval
+ABSL_DECLARE_FLAG(uint64_t, seed);                    // init-weights, simulate, eval, dataset sumo
+ABSL_DECLARE_FLAG(bool, json);                        // inspect, bench, dataset stats
+ABSL_DECLARE_FLAG(std::string, out);                  // convert, init-weights, simulate, render, dataset sumo
+ABSL_DECLARE_FLAG(int, index);                        // simulate, render
+ABSL_DECLARE_FLAG(std::string, mode);                 // simulate, eval
+ABSL_DECLARE_FLAG(std::string, sdc);                  // simulate, eval
+ABSL_DECLARE_FLAG(double, top_p);                     // simulate, eval
+ABSL_DECLARE_FLAG(double, temperature);               // simulate, eval
+ABSL_DECLARE_FLAG(std::string, wosac_submission);     // convert, eval
+ABSL_DECLARE_FLAG(std::string, submission_metadata);  // convert, eval
+
+namespace ss::cli {
+
+// The trained default model, where `make serve` and the server look for it (relative to the working directory).
+inline constexpr const char* kDefaultModel = "models/default.safetensors";
+// --model, or the default model when the flag is absent; NOT_FOUND saying so when neither exists.
+absl::StatusOr<std::string> model_path();
+
+}  // namespace ss::cli
