@@ -9,7 +9,7 @@
 set -eu
 
 # The server's and the health probe's run-time libraries (their other dependencies come with these).
-RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10"
+RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10 libprometheus-cpp-pull1.0"
 # CMake configures the whole tree (tests and benchmarks too), so their headers are part of a build.
 BUILD="
   build-essential cmake ninja-build pkg-config

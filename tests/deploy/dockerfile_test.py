@@ -128,6 +128,27 @@ class DockerfileTest(unittest.TestCase):
         for flag in re.findall(r'"--(\w+)=', cmd):
             self.assertIn(f"--{flag} ", helpfull)
 
+    def test_runtime_set_holds_the_binaries_libraries(self):
+        # The final stage installs only install-deps.sh's runtime set: every shared library the server and the probe
+        # load must come from a package of that set or one it depends on (a missing one is found only when the
+        # image's server fails to start).
+        binaries = [os.environ.get("SS_SERVER"), os.environ.get("SS_HEALTH")]
+        if not all(binaries):
+            self.skipTest("SS_SERVER and SS_HEALTH not set (run through ctest)")
+        runtime = re.search(r'^RUNTIME="([^"]*)"', read("deploy", "install-deps.sh"), re.M).group(1).split()
+        closure = subprocess.run(["apt-cache", "depends", "--recurse", "--no-recommends", "--no-suggests",
+                                  "--no-conflicts", "--no-breaks", "--no-replaces", "--no-enhances", *runtime],
+                                 capture_output=True, text=True, check=True).stdout
+        provided = {line.split(":")[0] for line in closure.splitlines() if line and not line.startswith(" ")}
+        for binary in binaries:
+            ldd = subprocess.run(["ldd", binary], capture_output=True, text=True, check=True).stdout
+            for lib in re.findall(r"=> (/\S+)", ldd):
+                owner = subprocess.run(["dpkg", "-S", os.path.realpath(lib)], capture_output=True, text=True)
+                if owner.returncode:
+                    owner = subprocess.run(["dpkg", "-S", lib], capture_output=True, text=True)
+                package = owner.stdout.split(":")[0]
+                self.assertIn(package, provided, f"{binary} loads {lib} from {package}, which the runtime set lacks")
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)
