@@ -68,8 +68,6 @@ int bench_main(int argc, char** argv) {
                         {flag(FLAGS_json)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   const int steps = absl::GetFlag(FLAGS_bench_steps), long_steps = absl::GetFlag(FLAGS_long_steps);
   if (steps < 1) return usage_error(command, "--steps must be at least 1");
   if (long_steps < 1) return usage_error(command, "--long-steps must be at least 1");

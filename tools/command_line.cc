@@ -98,6 +98,8 @@ std::optional<int> parse_command(const Command& command, int argc, char** argv, 
     if (std::string error; !flag->ParseFrom(value, &error)) return usage_error(command, absl::StrCat("--", name, ": ", error));
     line->given_[flag] = absl::StrCat("--", name);
   }
+  if (!command.positional && !line->positional_.empty())
+    return usage_error(command, absl::StrCat("unexpected argument '", line->positional_[0], "'"));
   return std::nullopt;
 }
 

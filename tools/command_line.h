@@ -32,6 +32,7 @@ struct Command {
   std::string usage;  // synopsis and what the command does; --help prints it, then the flags
   std::string file;   // __FILE__ of the source file that defines the command's own flags
   std::vector<const absl::CommandLineFlag*> shared;  // the shared flags it takes
+  bool positional = false;  // takes positional arguments (files); without, one is refused as unexpected
 };
 
 // A flag's handle, for Command::shared.

@@ -85,7 +85,8 @@ int to_submission(const std::vector<std::string>& inputs) {
 
 int convert_main(int argc, char** argv) {
   const Command command{"scenestreamer convert", kUsage, __FILE__,
-                        {flag(FLAGS_out), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)}};
+                        {flag(FLAGS_out), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)},
+                        true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (line.positional().empty()) return usage_error(command, "no input given");

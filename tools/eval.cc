@@ -110,7 +110,8 @@ int compare_main(const CommandLine& line) {
 int eval_main(int argc, char** argv) {
   const Command command{"scenestreamer eval", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_seed), flag(FLAGS_sdc), flag(FLAGS_top_p),
-                         flag(FLAGS_temperature), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)}};
+                         flag(FLAGS_temperature), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)},
+                        true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (line.has(FLAGS_compare)) return compare_main(line);

@@ -25,8 +25,6 @@ int init_weights_main(int argc, char** argv) {
                         {flag(FLAGS_seed), flag(FLAGS_out)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   if (!line.has(FLAGS_config) || !line.has(FLAGS_out)) return usage_error(command, "--config and --out are required");
   auto config = model_config_by_name(absl::GetFlag(FLAGS_config));
   if (!config.ok()) return usage_error(command, config.status().message());

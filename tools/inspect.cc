@@ -18,7 +18,8 @@ int inspect_main(int argc, char** argv) {
                         "  With one scenario, --json prints its report; with several, {\"scenarios\": [...], "
                         "\"summary\": {...}}.\n",
                         __FILE__,
-                        {flag(FLAGS_json)}};
+                        {flag(FLAGS_json)},
+                        true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (line.positional().empty()) return usage_error(command, "no FILE given");

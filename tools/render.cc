@@ -99,7 +99,7 @@ absl::Status run(const CommandLine& line) {
 }  // namespace
 
 int render_main(int argc, char** argv) {
-  const Command command{"scenestreamer render", kUsage, __FILE__, {flag(FLAGS_index), flag(FLAGS_out)}};
+  const Command command{"scenestreamer render", kUsage, __FILE__, {flag(FLAGS_index), flag(FLAGS_out)}, true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (line.positional().size() != 1)

@@ -57,8 +57,6 @@ int simulate_main(int argc, char** argv) {
                          flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   if (!line.has(FLAGS_simulate_scenario) || !line.has(FLAGS_out))
     return usage_error(command, "--scenario and --out are required");
   SessionOptions o;

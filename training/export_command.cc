@@ -21,8 +21,6 @@ int export_main(int argc, char** argv) {
                              {}};
   cli::CommandLine line;
   if (auto exit_code = cli::parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return cli::usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   if (!line.has(FLAGS_checkpoint) || !line.has(FLAGS_export_out))
     return cli::usage_error(command, "--checkpoint and --out are required");
   if (auto s = export_checkpoint(absl::GetFlag(FLAGS_checkpoint), absl::GetFlag(FLAGS_export_out)); !s.ok()) {

@@ -76,8 +76,6 @@ int main(int argc, char** argv) {
   const ss::cli::Command command{"scenestreamer-train", kUsage, __FILE__, {}};
   ss::cli::CommandLine line;
   if (auto exit_code = ss::cli::parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return ss::cli::usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   ss::train::TrainOptions o;
   o.config = absl::GetFlag(FLAGS_config);
   o.real_data = paths(absl::GetFlag(FLAGS_data));

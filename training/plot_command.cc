@@ -22,8 +22,6 @@ int plot_main(int argc, char** argv) {
                              {}};
   cli::CommandLine line;
   if (auto exit_code = cli::parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return cli::usage_error(command, "unexpected argument '" + line.positional()[0] + "'");
   if (!line.has(FLAGS_run) || !line.has(FLAGS_plot_out)) return cli::usage_error(command, "--run and --out are required");
   if (auto s = plot_run(absl::GetFlag(FLAGS_run), absl::GetFlag(FLAGS_plot_out)); !s.ok()) {
     std::fprintf(stderr, "scenestreamer-train plot: %s\n", std::string(s.message()).c_str());

@@ -74,6 +74,10 @@ refused "--steps: Illegal value 'zero'" "$bin" bench --steps zero
 refused "Illegal value '-1' specified for flag 'seed'" "$bin" init-weights --config small --out "$tmp/x" --seed -1
 refused "--json: Illegal value 'maybe'" "$bin" inspect --json=maybe "$scenario"
 refused "--out needs a value" "$bin" convert "$scenario" --out
+# A command that takes no files refuses a stray argument (one rule, in tools/command_line.cc).
+refused "unexpected argument 'stray'" "$bin" bench stray
+refused "unexpected argument 'stray'" "$bin" init-weights --config small --out "$tmp/x" stray
+refused "unexpected argument 'stray'" "$bin" dataset sumo stray --out "$tmp/s" --scenarios 1 --seed 1
 # Range checks about meaning stay, with their messages.
 refused "--steps must be at least 1" "$bin" bench --steps 0
 refused "--scenarios: want a positive integer" "$bin" dataset sumo --out "$tmp/s" --scenarios 0 --seed 1

@@ -37,7 +37,8 @@ int stats_main(int argc, char** argv) {
       "  agents per scenario by type, signal-controlled lanes per scenario, speeds by type, frames,\n"
       "  map features per scenario.\n",
       __FILE__,
-      {cli::flag(FLAGS_json)}};
+      {cli::flag(FLAGS_json)},
+      true};
   cli::CommandLine line;
   if (auto exit_code = cli::parse_command(command, argc, argv, &line)) return *exit_code;
   if (line.positional().empty()) return cli::usage_error(command, "no FILE_OR_DIR given");

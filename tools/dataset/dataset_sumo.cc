@@ -302,8 +302,6 @@ int sumo_main(int argc, char** argv) {
                              {cli::flag(FLAGS_out), cli::flag(FLAGS_seed)}};
   cli::CommandLine line;
   if (auto exit_code = cli::parse_command(command, argc, argv, &line)) return *exit_code;
-  if (!line.positional().empty())
-    return cli::usage_error(command, "unexpected argument " + line.positional()[0]);
   auto o = parse_options(line);
   if (!o.ok()) return cli::usage_error(command, o.status().message());
   return run(*o);
