@@ -34,10 +34,13 @@ from scenestreamer.client import connect
 from scenestreamer.v1 import simulator_pb2 as pb
 from scenestreamer.env import ACTION_HIGH, ACTION_LOW
 
-# The reward the policy is trained and evaluated with: metres of progress along the lane, minus penalties for the
-# events the server's engine reports. An episode ends on a collision or going off road, and is truncated at
-# --max-steps.
-REWARD = RewardConfig(progress=1.0, collision=-20.0, off_road=-10.0, red_light=-5.0)
+
+def reward(args):
+    """The reward the policy is trained and evaluated with: metres of progress along the lane, minus penalties for the
+    events the server's engine reports. An episode ends on a collision or going off road, and is truncated at
+    --max-steps. --collision-penalty sets the collision term (default -20: twice the package's default)."""
+    return RewardConfig(progress=1.0, collision=args.collision_penalty, off_road=-10.0, red_light=-5.0)
+
 
 # Network actions are in normalised units: acceleration = 2 u0 m/s^2, yaw rate = 0.5 u1 rad/s (u = 0: hold speed and
 # heading). Then clipped to the env's action space ([-8, 4] m/s^2, [-1, 1] rad/s).
@@ -199,7 +202,7 @@ def ppo_update(model, opt, batch, args):
 
 def train(args, log):
     torch.manual_seed(args.seed)
-    venv = SceneStreamerVectorEnv(args.envs, target=args.train_target, max_steps=args.max_steps, reward=REWARD,
+    venv = SceneStreamerVectorEnv(args.envs, target=args.train_target, max_steps=args.max_steps, reward=reward(args),
                                   scenarios=args.train_names)
     obs, _ = venv.reset(seed=args.seed)
     n_features = features(obs).shape[1]
@@ -268,7 +271,7 @@ def train(args, log):
 
 def run_episode(policy, args, name, seed):
     """One held-out episode: scenario `name`, env seed `seed`, until it ends; its return and events."""
-    env = SceneStreamerEnv(args.eval_target, scenarios=[name], max_steps=args.max_steps, reward=REWARD)
+    env = SceneStreamerEnv(args.eval_target, scenarios=[name], max_steps=args.max_steps, reward=reward(args))
     rng = np.random.default_rng(seed)  # the random policy's draws
     try:
         obs, _ = env.reset(seed=seed)
@@ -387,6 +390,7 @@ def main():
     p.add_argument("--iterations", type=int, default=1000)
     p.add_argument("--minutes", type=float, default=35, help="no new iteration starts after this (0: no limit)")
     p.add_argument("--max-steps", type=int, default=30, help="episode length (0.5 s steps)")
+    p.add_argument("--collision-penalty", type=float, default=-20.0, help="reward on a collision (the episode ends)")
     p.add_argument("--hidden", type=int, default=64)
     p.add_argument("--lr", type=float, default=1e-3)
     p.add_argument("--gamma", type=float, default=0.97)
@@ -424,7 +428,7 @@ def main():
     plot_svg(history, os.path.join(args.out, "curves.svg"),
              f"PPO against the SceneStreamer server: {args.envs} envs x {args.rollout} steps per iteration")
     model.eval()
-    results = {"args": {k: v for k, v in vars(args).items() if k != "train_names"}, "reward": vars(REWARD),
+    results = {"args": {k: v for k, v in vars(args).items() if k != "train_names"}, "reward": vars(reward(args)),
                "train_scenarios": len(train_names), "eval_scenarios": eval_names, "iterations": len(history)}
     t0 = time.time()
     results.update(evaluate(policies(model), args, eval_names))
