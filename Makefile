@@ -68,7 +68,7 @@ soak: build
 # the real train split plus them (hours on 2 cores; stop it any time and run it again: it resumes from its
 # checkpoint). The run lives outside the repository. TRAIN_FROM_COMMITTED=1 starts from the committed checkpoint
 # (models/train-checkpoint.pt) instead, to continue the run the committed model came from: raise TRAIN_STEPS past the
-# checkpoint's step (TRAIN_STEPS=3500 TRAIN_AGENTS=64 finishes the committed run's schedule from step 3,344). The
+# checkpoint's step (the committed checkpoint is step 3,500, with TRAIN_AGENTS=64; the default model is 3,344). The
 # committed run used these flags with 1,550 steps from step 788 to 1,550, then 2,500 (a warm restart), then from
 # 2,500 with 64 agents and 4,000 and 3,500 steps, stopped at 3,344 (the default); its first 788 steps ran under
 # longer schedules (models/MODEL_CARD.md). From scratch, these defaults make a model close to step 2,500's.
