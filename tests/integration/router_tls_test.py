@@ -15,7 +15,7 @@ import grpc
 from pki import Pki
 from scenestreamer.v1 import simulator_pb2 as pb
 from scenestreamer.v1 import simulator_pb2_grpc as rpc
-from server_process import Server, channel_to
+from server_process import Server, channel_to, error_of
 
 SOURCE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ROUTER_DIR = os.path.join(SOURCE_DIR, "deploy", "router")
@@ -126,12 +126,12 @@ class RouterTlsTest(unittest.TestCase):
         # The token passes through the router and the replica checks it.
         for token in (None, "wrong-token-0123456789"):
             channel = channel_to(target, tls_root=self.pki.read("ca.pem"), token=token)
-            code, _ = _error(rpc.SimulatorStub(channel).ListSessions, pb.ListSessionsRequest())
+            code, _ = error_of(rpc.SimulatorStub(channel).ListSessions, pb.ListSessionsRequest())
             self.assertEqual(code, C.UNAUTHENTICATED)
             channel.close()
         # Plaintext, or a client that does not trust the router's CA: no handshake.
         for channel in (grpc.insecure_channel(target), channel_to(target, tls_root=self.pki.read("other.pem"))):
-            code, _ = _error(rpc.SimulatorStub(channel).ListScenarios, pb.ListScenariosRequest(), timeout=10)
+            code, _ = error_of(rpc.SimulatorStub(channel).ListScenarios, pb.ListScenariosRequest(), timeout=10)
             self.assertEqual(code, C.UNAVAILABLE)
             channel.close()
 
@@ -145,14 +145,6 @@ class RouterTlsTest(unittest.TestCase):
     def test_haproxy_tls(self):
         target, stub = self.start_router("haproxy-tls.cfg", lambda prefix, conf: ["haproxy", "-f", conf])
         self.check_routes_over_tls(target, stub)
-
-
-def _error(fn, *args, **kw):
-    try:
-        fn(*args, **kw)
-    except grpc.RpcError as e:
-        return e.code(), e.details()
-    return None, None
 
 
 if __name__ == "__main__":
