@@ -46,6 +46,12 @@ ABSL_FLAG(int, eval_scenarios, kDefaults.eval_scenarios, "val scenarios of each 
 ABSL_FLAG(int64_t, stop_after, kDefaults.stop_after,
           "stop after N steps in this process, with a checkpoint (--resume continues); 0: no limit");
 
+ABSL_FLAG(std::string, init_from, "",
+          "start a fresh run (step 0, new optimizer and schedule) from this checkpoint's weights, e.g. to fine-tune");
+ABSL_FLAG(int, catk, kDefaults.catk_top_k,
+          "CAT-K closed-loop fine-tuning: roll each sample out with the current model, moving each agent by the one of "
+          "its K most probable tokens nearest the log, and train toward the log from there; 0: teacher forcing");
+
 namespace {
 
 constexpr const char* kUsage =
@@ -103,6 +109,8 @@ int main(int argc, char** argv) {
   o.eval_tool = absl::GetFlag(FLAGS_eval_tool);
   o.eval_scenarios = absl::GetFlag(FLAGS_eval_scenarios);
   o.stop_after = absl::GetFlag(FLAGS_stop_after);
+  o.init_from = absl::GetFlag(FLAGS_init_from);
+  o.catk_top_k = absl::GetFlag(FLAGS_catk);
   if (auto s = ss::train::run_training(o); !s.ok()) {
     std::fprintf(stderr, "scenestreamer-train: %s\n", std::string(s.message()).c_str());
     return 1;

@@ -14,6 +14,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "engine/model/model.h"
 #include "engine/model/weights.h"
 #include "engine/sim/teacher_forcing.h"
 #include "training/batch.h"
@@ -160,6 +161,7 @@ absl::Status run_training(const TrainOptions& o) {
   if (o.batch < 1 || o.steps < 1 || o.warmup < 1 || o.lr <= 0 || o.threads < 1)
     return absl::InvalidArgumentError("--batch, --steps, --warmup, --lr and --threads must be positive");
   if (o.real_fraction < 0 || o.real_fraction > 1) return absl::InvalidArgumentError("--real-fraction must be in [0, 1]");
+  if (o.catk_top_k < 0) return absl::InvalidArgumentError(absl::StrCat("--catk ", o.catk_top_k, " must be 0 (off) or positive"));
   torch::set_num_threads(o.threads);
   at::globalContext().setFlushDenormal(true);
 
@@ -193,6 +195,10 @@ absl::Status run_training(const TrainOptions& o) {
                 static_cast<long>(st.step), static_cast<long>(st.cursor.samples), st.elapsed);
   } else if (fs::exists(ckpt)) {
     return absl::FailedPreconditionError(absl::StrCat(ckpt.string(), " exists: pass --resume, or another --out"));
+  } else if (!o.init_from.empty()) {
+    RunState from;
+    if (auto s = load_checkpoint(o.init_from, model, nullptr, from, o.config); !s.ok()) return s;
+    std::printf("starting from the weights of %s (its step %ld)\n", o.init_from.c_str(), static_cast<long>(from.step));
   }
   int64_t params = 0;
   for (const auto& t : model.parameters()) params += t.numel();
@@ -200,19 +206,43 @@ absl::Status run_training(const TrainOptions& o) {
 
   const SampleOrder order(static_cast<int>(real->scenarios.size()), static_cast<int>(synthetic->scenarios.size()),
                           o.real_fraction, o.seed);
-  // The next batch's examples are built on another thread while this one trains.
-  auto build = [&](DataCursor cursor) {
+  // CAT-K rolls each sample out with the engine running the current weights: its batches are built between steps
+  // (the samples of one batch on `threads` threads), so a resumed run continues exactly. Teacher-forced batches are
+  // built on another thread while the previous one trains.
+  auto policy_now = [&]() -> std::shared_ptr<const Model> {
+    torch::NoGradGuard no_grad;
+    auto m = Model::create(model.to_weights());
+    return m.ok() ? *m : nullptr;
+  };
+  if (o.catk_top_k > 0)
+    std::printf("CAT-K closed-loop fine-tuning: top %d, targets re-tokenised toward the log\n", o.catk_top_k);
+  using Built = std::pair<std::vector<TeacherForcedExample>, DataCursor>;
+  auto build = [&](DataCursor cursor, std::shared_ptr<const Model> policy) -> Built {
+    const int workers = policy ? o.threads : 1;
     std::vector<TeacherForcedExample> out;
     int failures = 0;
     while (static_cast<int>(out.size()) < o.batch && failures < 100) {
-      const int64_t sample = cursor.samples;
-      const SampleRef ref = order.next(cursor);
-      const Scenario& s = ref.source == 0 ? real->scenarios[ref.scenario] : synthetic->scenarios[ref.scenario];
-      auto ex = teacher_forced_example(s, *config, example_options(o, ref.phase, order.sample_seed(sample)));
-      if (ex.ok() && ex->agents > 0) out.push_back(std::move(*ex));
-      else ++failures;
+      // Draw what is missing, build it, keep what succeeded in draw order: the same samples as one at a time.
+      std::vector<std::future<absl::StatusOr<TeacherForcedExample>>> made;
+      for (int i = static_cast<int>(out.size()); i < o.batch; ++i) {
+        const int64_t sample = cursor.samples;
+        const SampleRef ref = order.next(cursor);
+        const Scenario& s = ref.source == 0 ? real->scenarios[ref.scenario] : synthetic->scenarios[ref.scenario];
+        const TeacherForcingOptions eo = example_options(o, ref.phase, order.sample_seed(sample));
+        made.push_back(std::async(workers > 1 ? std::launch::async : std::launch::deferred, [&, eo, policy, sp = &s] {
+          return policy ? closed_loop_example(*sp, *policy, eo, o.catk_top_k) : teacher_forced_example(*sp, *config, eo);
+        }));
+        const size_t n = made.size(), w = static_cast<size_t>(workers);
+        if (n % w == 0)  // at most `workers` at once
+          for (size_t j = n - w; j < n; ++j) made[j].wait();
+      }
+      for (auto& f : made) {
+        auto ex = f.get();
+        if (ex.ok() && ex->agents > 0) out.push_back(std::move(*ex));
+        else ++failures;
+      }
     }
-    return std::make_pair(std::move(out), cursor);
+    return {std::move(out), cursor};
   };
 
   // Validation examples: phase 0 of the first val scenarios, agent slots in session order.
@@ -233,7 +263,8 @@ absl::Status run_training(const TrainOptions& o) {
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  auto pending = std::async(std::launch::async, build, st.cursor);
+  std::future<Built> pending;
+  if (o.catk_top_k == 0) pending = std::async(std::launch::async, build, st.cursor, nullptr);
   const auto session_start = Clock::now();
   auto last_checkpoint = Clock::now();
   double window_tokens = 0, window_seconds = 0, window_loss = 0;
@@ -246,11 +277,19 @@ absl::Status run_training(const TrainOptions& o) {
     return save_weights((dir / "latest.safetensors").string(), model.to_weights());
   };
   while (st.step < o.steps && !g_stop) {
-    auto [examples, next_cursor] = pending.get();
+    const auto t0 = Clock::now();  // a step's time includes building its batch (CAT-K) or waiting for it
+    Built built;
+    if (o.catk_top_k > 0) {
+      auto policy = policy_now();
+      if (!policy) return absl::InternalError("CAT-K: the engine could not load the model's weights");
+      built = build(st.cursor, std::move(policy));
+    } else {
+      built = pending.get();
+    }
+    auto& [examples, next_cursor] = built;
     if (examples.empty()) return absl::InternalError("could not build any training example from 100 samples in a row");
     st.cursor = next_cursor;
-    pending = std::async(std::launch::async, build, st.cursor);
-    const auto t0 = Clock::now();
+    if (o.catk_top_k == 0) pending = std::async(std::launch::async, build, st.cursor, nullptr);
     std::vector<const TeacherForcedExample*> ptrs;
     for (const auto& e : examples) ptrs.push_back(&e);
     const Batch b = make_batch(ptrs);
@@ -310,7 +349,7 @@ absl::Status run_training(const TrainOptions& o) {
     }
     if (o.stop_after > 0 && steps_here >= o.stop_after) break;
   }
-  pending.wait();
+  if (pending.valid()) pending.wait();
   if (auto s = checkpoint(); !s.ok()) return s;
   std::printf("stopped at step %ld after %.0f s in this process; checkpoint %s\n", static_cast<long>(st.step),
               std::chrono::duration<double>(Clock::now() - session_start).count(), ckpt.c_str());

@@ -38,6 +38,8 @@ struct TrainOptions {
   std::string eval_tool;                // the scenestreamer binary for the periodic eval
   int eval_scenarios = 8;
   int64_t stop_after = 0;               // stop (with a checkpoint) after this many steps in this process; 0: no limit
+  std::string init_from;                // a fresh run (step 0, new optimizer) starting from this checkpoint's weights
+  int catk_top_k = 0;                   // > 0: CAT-K closed-loop fine-tuning (closed_loop_example) with this K
 };
 
 absl::Status run_training(const TrainOptions& options);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "absl/strings/str_cat.h"
@@ -9,6 +10,7 @@
 #include "engine/map/spatial_index.h"
 #include "engine/model/attention.h"
 #include "engine/model/key_select.h"
+#include "engine/model/model.h"
 #include "engine/base/rng.h"
 #include "engine/sim/token_builders.h"
 #include "engine/tokens/fidelity.h"
@@ -21,8 +23,10 @@ namespace {
 struct SeqAgent {
   int track = 0;
   int first = 0, last = 0;          // steps, inclusive
+  std::vector<StepState> log;       // per step: the log's state (invalid outside first..last)
   std::vector<StepState> states;    // per step: the tokens' input (the motion tokens' reconstruction, the log's box)
   std::vector<int> motion;          // per step: the token that brought it there (START at `first`)
+  std::vector<int> target;          // per step: the motion target read at that step (the next step's token)
   int rank = 0;                     // 0 SDC, 1 a track to predict, 2 the others
   double distance = 0;              // from the region's centre at its first step
 };
@@ -82,8 +86,42 @@ void fill_map_inputs(TeacherForcedExample& ex, const ModelConfig& config) {
   }
 }
 
-absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scenario, const ModelConfig& config,
-                                                            const TeacherForcingOptions& options) {
+namespace {
+
+// The closed-loop choice of CAT-K: among the `top_k` most probable tokens of `logits`, the one whose next box is
+// nearest (Average Corner Error) the log's next box; ties go to the more probable.
+int closest_among_top_k(std::span<const float> logits, int top_k, const KinematicState& from, const StepState& next) {
+  std::vector<int> order(logits.size());
+  std::iota(order.begin(), order.end(), 0);
+  const int k = std::min<int>(top_k, static_cast<int>(order.size()));
+  std::partial_sort(order.begin(), order.begin() + k, order.end(),
+                    [&](int a, int b) { return logits[a] != logits[b] ? logits[a] > logits[b] : a < b; });
+  const Box target{{next.x, next.y, next.heading}, next.length, next.width};
+  int best = order[0];
+  double best_ace = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < k; ++i) {
+    const KinematicState s = apply_motion_token(from, order[i]);
+    const double ace = average_corner_error({{s.x, s.y, s.heading}, next.length, next.width}, target);
+    if (ace < best_ace) {
+      best_ace = ace;
+      best = order[i];
+    }
+  }
+  return best;
+}
+
+StepState with_kinematics(StepState s, const KinematicState& k) {
+  s.x = k.x;
+  s.y = k.y;
+  s.heading = k.heading;
+  s.vx = k.speed * std::cos(k.heading);
+  s.vy = k.speed * std::sin(k.heading);
+  return s;
+}
+
+// The example of the log (policy null) or of a CAT-K rollout of `policy` (closed_loop_example).
+absl::StatusOr<TeacherForcedExample> build_example(const Scenario& scenario, const ModelConfig& config,
+                                                   const TeacherForcingOptions& options, const Model* policy, int top_k) {
   if (options.phase < 0 || options.phase >= kFramesPerStep)
     return absl::InvalidArgumentError(absl::StrCat("teacher forcing: phase ", options.phase, " is outside 0..4"));
   if (options.max_agents < 1 || options.max_agents > config.agent_slots)
@@ -135,8 +173,8 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
     a.track = static_cast<int>(i);
     a.first = first;
     a.last = last;
-    a.states.assign(steps, StepState{});
-    for (int t = first; t <= last; ++t) a.states[t] = log[t];
+    a.log.assign(steps, StepState{});
+    for (int t = first; t <= last; ++t) a.log[t] = log[t];
     const bool predicted = std::any_of(scenario.tracks_to_predict.begin(), scenario.tracks_to_predict.end(),
                                        [&](const RequiredPrediction& r) { return r.track_index == static_cast<int>(i); });
     a.rank = &track == sdc ? 0 : predicted ? 1 : 2;
@@ -148,17 +186,22 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
   });
   if (static_cast<int>(agents.size()) > options.max_agents) agents.resize(options.max_agents);
   // Motion tokens for the agents kept (the search over 1089 controls is the costly part), rolled forward on their
-  // reconstruction; the tokens' inputs are the reconstructed states, as a rollout's are.
+  // reconstruction; the tokens' inputs are the reconstructed states, as a rollout's are. A closed-loop example
+  // knows only each agent's first state here; the policy moves it step by step below.
   for (SeqAgent& a : agents) {
-    const MotionTrack motion = tokenize_motion(a.states);
+    a.states = a.log;
+    a.target.assign(steps, kNoTarget);
+    if (policy) {
+      a.motion.assign(steps, -1);
+      a.motion[a.first] = kMotionStart;
+      a.states[a.first] = with_kinematics(a.log[a.first], kinematic_state(a.log[a.first]));
+      continue;
+    }
+    const MotionTrack motion = tokenize_motion(a.log);
     a.motion = motion.tokens;
     for (int t = a.first; t <= a.last; ++t) {
-      const KinematicState& k = motion.reconstructed[t];
-      a.states[t].x = k.x;
-      a.states[t].y = k.y;
-      a.states[t].heading = k.heading;
-      a.states[t].vx = k.speed * std::cos(k.heading);
-      a.states[t].vy = k.speed * std::sin(k.heading);
+      a.states[t] = with_kinematics(a.log[t], motion.reconstructed[t]);
+      if (t < a.last && a.motion[t + 1] >= 0 && a.motion[t + 1] < kMotionVocab) a.target[t] = a.motion[t + 1];
     }
   }
   // In order of entry, as a session's agent list.
@@ -188,7 +231,18 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
     ex.state_target.push_back(none);
     return static_cast<int>(ex.tokens.size()) - 1;
   };
+  std::shared_ptr<const MapContext> map;
+  KvCache cache;
+  if (policy) {
+    auto encoded = policy->encode_map(ex.segments);
+    if (!encoded.ok()) return encoded.status();
+    map = *encoded;
+    cache = policy->new_cache();
+  }
   for (int t = 0; t < steps; ++t) {
+    const size_t step_begin = ex.tokens.size();
+    std::vector<int> motion_rows;  // the step's motion tokens, as indices from step_begin
+    std::vector<SeqAgent*> moving;  // their agents
     for (size_t k = 0; k < lights.size(); ++k) {
       const int i = add(light_token(t, static_cast<int>(k), lights[k], log_light_state(scenario, lights[k].lane, frame_of(t))));
       if (t + 1 < steps) ex.light_target[i] = static_cast<int>(log_light_state(scenario, lights[k].lane, frame_of(t + 1)));
@@ -213,16 +267,49 @@ absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scen
     }
     add(eos_token(t));
     for (size_t k = 0, o = 0; k < agents.size(); ++k) {
-      const SeqAgent& a = agents[k];
+      SeqAgent& a = agents[k];
       if (t < a.first || t > a.last) continue;
       const int i = add(agent_motion_token(t, alive[o++]));
-      if (t + 1 <= a.last && a.motion[t + 1] >= 0 && a.motion[t + 1] < kMotionVocab) ex.motion_target[i] = a.motion[t + 1];
+      motion_rows.push_back(i - static_cast<int>(step_begin));
+      moving.push_back(&a);
     }
+    if (policy && t + 1 < steps) {
+      // The step through the policy, as a session runs it (the cache keeps what the window needs); each agent
+      // moves by its closest-among-top-k token, and its target is re-tokenised from where it is to the log's next
+      // pose, so the model learns to recover from its own drift.
+      cache.evict_before(t - config.window_steps + 1);
+      std::vector<DecoderToken> fresh(ex.tokens.begin() + step_begin, ex.tokens.end());
+      const Mat logits = policy->motion_logits(policy->decode(*map, cache, fresh, motion_rows));
+      for (size_t r = 0; r < moving.size(); ++r) {
+        SeqAgent& a = *moving[r];
+        if (t + 1 > a.last) continue;
+        const KinematicState from = kinematic_state(a.states[t]);
+        const StepState& next = a.log[t + 1];
+        const int chosen = closest_among_top_k({logits.row(r).data(), static_cast<size_t>(logits.cols())}, top_k, from, next);
+        a.motion[t + 1] = chosen;
+        a.states[t + 1] = with_kinematics(next, apply_motion_token(from, chosen));
+        a.target[t] = fit_motion_token(from, {next.x, next.y, next.heading}, next.length, next.width).token;
+      }
+    }
+    for (size_t r = 0; r < moving.size(); ++r) ex.motion_target[step_begin + motion_rows[r]] = moving[r]->target[t];
   }
 
   // Keys: the decoder's own selection over the whole sequence (a fresh cache).
   append_decoder_keys({}, ex.tokens, ex.segments, index, config, ex.self_keys, ex.cross_keys);
   return ex;
+}
+
+}  // namespace
+
+absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scenario, const ModelConfig& config,
+                                                            const TeacherForcingOptions& options) {
+  return build_example(scenario, config, options, nullptr, 0);
+}
+
+absl::StatusOr<TeacherForcedExample> closed_loop_example(const Scenario& scenario, const Model& policy,
+                                                         const TeacherForcingOptions& options, int top_k) {
+  if (top_k < 1) return absl::InvalidArgumentError(absl::StrCat("closed loop: top_k ", top_k, " must be at least 1"));
+  return build_example(scenario, policy.config(), options, &policy, top_k);
 }
 
 }  // namespace ss

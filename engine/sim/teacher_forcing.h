@@ -18,6 +18,8 @@
 
 namespace ss {
 
+class Model;
+
 struct TeacherForcingOptions {
   int phase = 0;               // 0..4: the 2 Hz steps take frames phase, phase + 5, ... (one log gives five sequences)
   int max_agents = 32;         // agents in the sequence: the SDC, the tracks to predict, then the nearest
@@ -74,5 +76,14 @@ void fill_map_inputs(TeacherForcedExample& ex, const ModelConfig& config);
 // FAILED_PRECONDITION for a map without segments.
 absl::StatusOr<TeacherForcedExample> teacher_forced_example(const Scenario& scenario, const ModelConfig& config,
                                                             const TeacherForcingOptions& options);
+
+// The same sequence with the agents' motion rolled out by `policy` (CAT-K, "closest among top-K", Zhang et al.
+// 2025): from its first state each agent moves, step by step, by the one of the policy's `top_k` most probable
+// motion tokens whose next box is nearest the log's, and its motion target at each step is re-tokenised: the
+// token from its rolled-out state to the log's next pose. The agent set, the lights and their targets are the
+// log's; the agent-state tokens and their targets describe the rolled-out states. INVALID_ARGUMENT for top_k < 1,
+// and teacher_forced_example's errors.
+absl::StatusOr<TeacherForcedExample> closed_loop_example(const Scenario& scenario, const Model& policy,
+                                                         const TeacherForcingOptions& options, int top_k);
 
 }  // namespace ss

@@ -1,5 +1,6 @@
 // Training runs: the loss falls on a few real scenarios, and a run stopped and resumed from its checkpoint ends with
-// the same weights, byte for byte, as one that ran straight through.
+// the same weights, byte for byte, as one that ran straight through; so does a CAT-K fine-tuning run started from
+// another run's weights.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -98,6 +99,48 @@ TEST(TrainRun, ResumedRunEndsWithTheSameWeights) {
   // Without --resume an existing run is not overwritten.
   o.resume = false;
   EXPECT_FALSE(run_training(o).ok());
+  fs::remove_all(dir);
+}
+
+TEST(TrainRun, ClosedLoopFineTuningFromAnotherRunResumesExactly) {
+  const fs::path dir = fs::temp_directory_path() / ("ss_train_catk_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  TrainOptions o;
+  o.config = "small";
+  o.real_data = val_files(2);
+  o.steps = 2;
+  o.stage1_steps = 0;
+  o.warmup = 1;
+  o.batch = 2;
+  o.max_agents = 4;
+  o.max_map_segments = 200;
+  o.val_every = 0;
+  o.out = (dir / "base").string();
+  ASSERT_TRUE(run_training(o).ok());
+  o.init_from = (dir / "base" / "checkpoint.pt").string();
+  o.catk_top_k = 4;
+  o.steps = 4;
+  o.threads = 2;  // two samples rolled out at once
+  o.out = (dir / "straight").string();
+  ASSERT_TRUE(run_training(o).ok());
+  o.out = (dir / "resumed").string();
+  o.stop_after = 2;
+  ASSERT_TRUE(run_training(o).ok());
+  o.resume = true;
+  o.stop_after = 0;
+  ASSERT_TRUE(run_training(o).ok());
+  const std::string straight = file_bytes(dir / "straight" / "latest.safetensors");
+  EXPECT_FALSE(straight.empty());
+  EXPECT_NE(file_bytes(dir / "base" / "latest.safetensors"), straight) << "fine-tuning changed the weights";
+  EXPECT_EQ(file_bytes(dir / "resumed" / "latest.safetensors"), straight);
+  // The starting weights are a checkpoint of the same configuration.
+  o.out = (dir / "other").string();
+  o.resume = false;
+  o.init_from = (dir / "base" / "latest.safetensors").string();
+  EXPECT_FALSE(run_training(o).ok()) << "a weight file is not a checkpoint";
+  o.catk_top_k = -1;
+  o.init_from.clear();
+  EXPECT_FALSE(run_training(o).ok()) << "--catk must not be negative";
   fs::remove_all(dir);
 }
 
