@@ -209,10 +209,9 @@ absl::Status run_training(const TrainOptions& o) {
   // CAT-K rolls each sample out with the engine running the current weights: its batches are built between steps
   // (the samples of one batch on `threads` threads), so a resumed run continues exactly. Teacher-forced batches are
   // built on another thread while the previous one trains.
-  auto policy_now = [&]() -> std::shared_ptr<const Model> {
+  auto policy_now = [&]() {
     torch::NoGradGuard no_grad;
-    auto m = Model::create(model.to_weights());
-    return m.ok() ? *m : nullptr;
+    return Model::create(model.to_weights());
   };
   if (o.catk_top_k > 0)
     std::printf("CAT-K closed-loop fine-tuning: top %d, targets re-tokenised toward the log\n", o.catk_top_k);
@@ -281,8 +280,8 @@ absl::Status run_training(const TrainOptions& o) {
     Built built;
     if (o.catk_top_k > 0) {
       auto policy = policy_now();
-      if (!policy) return absl::InternalError("CAT-K: the engine could not load the model's weights");
-      built = build(st.cursor, std::move(policy));
+      if (!policy.ok()) return absl::InternalError(absl::StrCat("CAT-K: the engine refused the weights: ", policy.status().message()));
+      built = build(st.cursor, *std::move(policy));
     } else {
       built = pending.get();
     }
