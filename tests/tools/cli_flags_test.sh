@@ -91,12 +91,13 @@ grep -q "frame 3/90" "$tmp/a.svg"
 if [ -n "${SS_TRAIN:-}" ]; then
   help "$SS_TRAIN" -- config data synthetic val out resume real-fraction steps stage1-steps batch lr warmup \
     weight-decay clip max-agents max-map-segments seed threads log-every val-every val-scenarios checkpoint-every \
-    eval-every eval-tool eval-scenarios stop-after
+    eval-every eval-tool eval-scenarios stop-after init-from catk
   help "$SS_TRAIN" export -- checkpoint out
   help "$SS_TRAIN" plot -- run out
   refused "unknown flag --checkpoint" "$SS_TRAIN" --checkpoint x --out "$tmp/run"
   refused "unknown flag --resume" "$SS_TRAIN" export --checkpoint x --out "$tmp/m" --resume
   refused "Illegal value 'many' specified for flag 'steps'" "$SS_TRAIN" --steps many --out "$tmp/run"
+  refused "Illegal value 'x' specified for flag 'catk'" "$SS_TRAIN" --catk x --out "$tmp/run"
   refused "--checkpoint and --out are required" "$SS_TRAIN" export --out "$tmp/m"
   test ! -e "$tmp/run" && test ! -e "$tmp/m"
 fi
