@@ -93,9 +93,13 @@ TEST_F(ManagerTest, TheReaperTrimsMallocAfterSessionsCloseOnly) {
   ASSERT_TRUE(m.close("a", "").ok());
   ASSERT_TRUE(m.close("b", "").ok());
   for (int i = 0; i < 50 && trims() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  EXPECT_EQ(trims(), 1);
+  // The reaper may wake between the two closes and trim after each (seen in CI): two intervals later both are done.
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  const double after_closes = trims();
+  EXPECT_GE(after_closes, 1);
+  EXPECT_LE(after_closes, 2);
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
-  EXPECT_EQ(trims(), 1) << "trims again with nothing closed since";
+  EXPECT_EQ(trims(), after_closes) << "trims again with nothing closed since";
 }
 
 TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
