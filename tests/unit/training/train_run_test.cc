@@ -68,21 +68,26 @@ std::string file_bytes(const fs::path& p) {
   return s.str();
 }
 
-TEST(TrainRun, ResumedRunEndsWithTheSameWeights) {
-  const fs::path dir = fs::temp_directory_path() / ("ss_train_resume_" + std::to_string(getpid()));
-  fs::remove_all(dir);
+// A short run on two real val files: small samples, no validation.
+TrainOptions short_run() {
   TrainOptions o;
   o.config = "small";
   o.real_data = val_files(2);
-  o.val_data = {};
+  o.max_agents = 4;
+  o.max_map_segments = 200;
+  o.val_every = 0;
+  return o;
+}
+
+TEST(TrainRun, ResumedRunEndsWithTheSameWeights) {
+  const fs::path dir = fs::temp_directory_path() / ("ss_train_resume_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  TrainOptions o = short_run();
   o.steps = 4;
   o.stage1_steps = 2;  // the resumed half crosses into the second stage
   o.warmup = 2;
   o.batch = 1;
-  o.max_agents = 4;
-  o.max_map_segments = 200;
   o.log_every = 1;
-  o.val_every = 0;
   o.out = (dir / "straight").string();
   ASSERT_TRUE(run_training(o).ok());
   o.out = (dir / "resumed").string();
@@ -105,16 +110,11 @@ TEST(TrainRun, ResumedRunEndsWithTheSameWeights) {
 TEST(TrainRun, ClosedLoopFineTuningFromAnotherRunResumesExactly) {
   const fs::path dir = fs::temp_directory_path() / ("ss_train_catk_" + std::to_string(getpid()));
   fs::remove_all(dir);
-  TrainOptions o;
-  o.config = "small";
-  o.real_data = val_files(2);
+  TrainOptions o = short_run();
   o.steps = 2;
   o.stage1_steps = 0;
   o.warmup = 1;
   o.batch = 2;
-  o.max_agents = 4;
-  o.max_map_segments = 200;
-  o.val_every = 0;
   o.out = (dir / "base").string();
   ASSERT_TRUE(run_training(o).ok());
   o.init_from = (dir / "base" / "checkpoint.pt").string();
