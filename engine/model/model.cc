@@ -214,44 +214,60 @@ Mat Model::map_segment_logits(const Mat& h, const MapContext& map) const {
   return (linear(h, pointer_query_) * map.pointer_keys.transpose()) * scale;
 }
 
-Vec Model::relative_state_logits(const Mat& z, std::span<const int> prefix) const {
-  const int d = config().d_model, heads = config().heads, dh = d / heads;
-  const int n = static_cast<int>(prefix.size()) + 1;  // start token + the fields so far
-  Mat x(n, d);
-  for (int j = 0; j < n; ++j) {
-    const int input = j == 0 ? kRsBins : prefix[j - 1];
-    x.row(j) = VecMap(rs_input_emb_ + input * d, d) + VecMap(rs_position_emb_ + j * d, d);
+RsHead Model::rs_begin(const Mat& z) const {
+  const int d = config().d_model;
+  RsHead s;
+  // z is the same for every field: its AdaLN modulations (1 x 2d each: scale then shift) are computed once.
+  for (const RsBlockParams& B : rs_blocks_) {
+    s.modulation.push_back(linear(z, B.adaln1));
+    s.modulation.push_back(linear(z, B.adaln2));
   }
+  s.modulation.push_back(linear(z, rs_final_adaln_));
+  s.keys.assign(rs_blocks_.size(), Mat(kRsFields, d));
+  s.values.assign(rs_blocks_.size(), Mat(kRsFields, d));
+  return s;
+}
+
+Vec Model::rs_next(RsHead& s, int previous_bin) const {
+  const int d = config().d_model, heads = config().heads, dh = d / heads;
+  const int j = s.fields;  // this row's position: the start token, then one row per field so far
+  const int input = j == 0 ? kRsBins : previous_bin;
+  Mat x = VecMap(rs_input_emb_ + input * d, d) + VecMap(rs_position_emb_ + j * d, d);
   // AdaLN: LayerNorm without affine, scaled by (1 + g(z)) and shifted by b(z).
-  auto adaln = [&](const Mat& in, const LinearParams& p) {
-    const Mat mod = linear(z, p);  // 1 x 2d: scale then shift
+  auto adaln = [d](const Mat& in, const Mat& mod) {
     Mat y = layer_norm_plain(in);
-    const Vec scale_by = mod.row(0).head(d).array() + 1.0f;
-    const Vec shift_by = mod.row(0).tail(d);
-    y.array().rowwise() *= scale_by.array();
-    y.rowwise() += shift_by;
+    y.array() *= mod.leftCols(d).array() + 1.0f;
+    y += mod.rightCols(d);
     return y;
   };
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
-  for (const RsBlockParams& B : rs_blocks_) {
-    const Mat xn = adaln(x, B.adaln1);
-    const Mat q = linear(xn, B.query), k = linear(xn, B.key), v = linear(xn, B.value);
-    Mat o(n, d);
-    for (int h = 0; h < heads; ++h) {
-      for (int i = 0; i < n; ++i) {  // causal: position i reads 0..i
-        Vec s(i + 1);
-        for (int j = 0; j <= i; ++j) s[j] = q.row(i).segment(h * dh, dh).dot(k.row(j).segment(h * dh, dh)) * scale;
-        softmax_inplace(s.data(), i + 1);
-        o.row(i).segment(h * dh, dh) = s * v.block(0, h * dh, i + 1, dh);
-      }
+  for (size_t b = 0; b < rs_blocks_.size(); ++b) {
+    const RsBlockParams& B = rs_blocks_[b];
+    const Mat xn = adaln(x, s.modulation[2 * b]);
+    const Mat q = linear(xn, B.query);
+    s.keys[b].row(j) = linear(xn, B.key);
+    s.values[b].row(j) = linear(xn, B.value);
+    Mat o(1, d);
+    Vec w(j + 1);
+    for (int h = 0; h < heads; ++h) {  // causal: this row reads rows 0..j
+      for (int i = 0; i <= j; ++i) w[i] = q.row(0).segment(h * dh, dh).dot(s.keys[b].row(i).segment(h * dh, dh)) * scale;
+      softmax_inplace(w.data(), j + 1);
+      o.row(0).segment(h * dh, dh) = w * s.values[b].block(0, h * dh, j + 1, dh);
     }
     x += linear(o, B.output);
-    Mat f = linear(adaln(x, B.adaln2), B.ffn1);
+    Mat f = linear(adaln(x, s.modulation[2 * b + 1]), B.ffn1);
     relu_inplace(f);
     x += linear(f, B.ffn2);
   }
-  const Mat last = adaln(x.bottomRows(1), rs_final_adaln_);
-  return linear(last, rs_output_);
+  ++s.fields;
+  return linear(adaln(x, s.modulation.back()), rs_output_);
+}
+
+Vec Model::relative_state_logits(const Mat& z, std::span<const int> prefix) const {
+  RsHead s = rs_begin(z);
+  Vec logits = rs_next(s, 0);
+  for (int bin : prefix) logits = rs_next(s, bin);
+  return logits;
 }
 
 }  // namespace ss

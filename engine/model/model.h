@@ -70,6 +70,13 @@ struct ModelOptions {
 absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name);
 const char* kv_precision_name(KvPrecision p);
 
+// The relative-state head's state while one agent's fields are sampled (Model::rs_begin, rs_next).
+struct RsHead {
+  std::vector<Mat> modulation;   // per AdaLN (two per block, then the final one): 1 x 2d from z
+  std::vector<Mat> keys, values; // per block: kRsFields x d, rows 0..fields-1 written
+  int fields = 0;                // rows run so far
+};
+
 class Model {
  public:
   static absl::StatusOr<std::shared_ptr<const Model>> create(Weights weights, ModelOptions options = {});
@@ -105,6 +112,10 @@ class Model {
   // Logits of relative-state field `prefix.size()` (0..7) given the earlier fields' bins, conditioned on `z`, the
   // decoder output of the MS token (1 x d).
   Vec relative_state_logits(const Mat& z, std::span<const int> prefix) const;
+  // The same head field by field, each field's work done once: rs_begin(z), then rs_next gives field 0's logits
+  // (previous_bin unused), and each further call the next field's given the bin chosen for the one before.
+  RsHead rs_begin(const Mat& z) const;
+  Vec rs_next(RsHead& s, int previous_bin) const;
 
   Mat embed(std::span<const DecoderToken> tokens) const;
 

@@ -231,12 +231,11 @@ bool Session::sample_agent(const Mat& h_last, bool force_continue, const InjectR
       ms.map_id = seg;
       tok = {ms};
       const Mat h_ms = decode(tok);
-      std::vector<int> prefix;
+      RsHead head = model_->rs_begin(h_ms);
       for (int f = 0; f < kRsFields; ++f) {
-        const Vec logits = model_->relative_state_logits(h_ms, prefix);
-        prefix.push_back(sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, 1.0, rng_));
+        const Vec logits = model_->rs_next(head, f == 0 ? 0 : bins[f - 1]);
+        bins[f] = sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, 1.0, rng_);
       }
-      std::copy(prefix.begin(), prefix.end(), bins.begin());
       RelativeState rel;
       for (int f = 0; f < kRsFields; ++f) rel[f] = state_bin_value(f, bins[f]);
       a.state = global_state(rel, map_->segments[seg].pose);
