@@ -134,7 +134,8 @@ int main(int argc, char** argv) {
     spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise). Pass --model FILE or "
                  "put a .safetensors file in models/ !!!", eo.random_config);
   else
-    spdlog::info("model {} (config {})", eo.model_path, ss::engine_model_name(**engine));
+    spdlog::info("model {} (config {}, {} keys and values)", eo.model_path, ss::engine_model_name(**engine),
+                 ss::engine_kv_precision(**engine));
   spdlog::info("{} scenarios from {}", ss::engine_scenarios(**engine).size(), scenario_dir);
 
   ss::server::Metrics metrics;

@@ -22,7 +22,7 @@ ABSL_FLAG(std::string, bench_scenario, ss::kBenchScenario, "the scenario file th
 ABSL_FLAG(int, bench_steps, 30, "timed steps per agent count, at least 1");
 ABSL_FLAG(int, long_steps, 1000, "steps of the long rollout whose session memory is measured, at least 1");
 ABSL_FLAG(std::string, kv_precision, "",
-          "fp32 or fp16: how keys and values are stored; default: $SCENESTREAMER_KV_PRECISION, else fp32");
+          "fp32 or fp16: how keys and values are stored; default: $SCENESTREAMER_KV_PRECISION, else fp16");
 
 namespace ss::cli {
 namespace {
@@ -85,7 +85,7 @@ int bench_main(int argc, char** argv) {
   nlohmann::ordered_json out;
   out["model"] = c.name;
   out["threads"] = 1;
-  out["kv_precision"] = kv_precision_name(options.kv_precision);
+  out["kv_precision"] = kv_precision_name(world->model->kv_precision());
   out["lights"] = world->scenario->signals.empty() ? 0 : world->scenario->signals[world->scenario->current_time_index].size();
   out["map_segments"] = world->map->size();
 
@@ -168,7 +168,7 @@ int bench_main(int argc, char** argv) {
   if (long_steps != 1000) out["session_bytes_after_1000_steps"] = nullptr;  // not measured in this run
   out["session_cache_tokens"] = (*s)->cache_tokens();
   out["kv_bytes_per_token"] =
-      2 * c.decoder_layers * c.d_model * (options.kv_precision == KvPrecision::fp16 ? sizeof(uint16_t) : sizeof(float));
+      2 * c.decoder_layers * c.d_model * (world->model->kv_precision() == KvPrecision::fp16 ? sizeof(uint16_t) : sizeof(float));
   out["map_bytes_shared"] = world->map->bytes();
   if (json) {
     std::puts(json_text(out).c_str());

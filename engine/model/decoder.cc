@@ -11,7 +11,7 @@ namespace ss {
 
 KvCache Model::new_cache() const {
   KvCache cache;
-  cache.init(config().decoder_layers, config().d_model, options_.kv_precision);
+  cache.init(config().decoder_layers, config().d_model, kv_precision());
   return cache;
 }
 

@@ -9,12 +9,18 @@
 
 namespace ss {
 
-KvPrecision ModelOptions::default_kv_precision() {
+namespace {
+
+// SCENESTREAMER_KV_PRECISION, else fp16. A value that is neither is an error, not a silent default.
+absl::StatusOr<KvPrecision> kv_precision_from_env() {
   const char* env = std::getenv("SCENESTREAMER_KV_PRECISION");
-  if (env == nullptr || *env == 0) return KvPrecision::fp32;
+  if (env == nullptr || *env == 0) return KvPrecision::fp16;
   auto p = kv_precision_by_name(env);
-  return p.ok() ? *p : KvPrecision::fp32;
+  if (!p.ok()) return absl::InvalidArgumentError(absl::StrCat("SCENESTREAMER_KV_PRECISION: ", p.status().message()));
+  return p;
 }
+
+}  // namespace
 
 absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name) {
   if (name == "fp32") return KvPrecision::fp32;
@@ -92,6 +98,11 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, Mode
     if (it == weights.tensors.end()) return absl::InvalidArgumentError(absl::StrCat("weights lack tensor ", spec.name));
     if (it->second.shape != spec.shape)
       return absl::InvalidArgumentError(absl::StrCat("weights tensor ", spec.name, " has the wrong shape"));
+  }
+  if (!options.kv_precision) {
+    auto p = kv_precision_from_env();
+    if (!p.ok()) return p.status();
+    options.kv_precision = *p;
   }
   return std::shared_ptr<const Model>(new Model(std::move(weights), options));
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -59,12 +60,10 @@ struct RsBlockParams {
 
 // How the model runs (not what it computes): the KV caches' storage.
 struct ModelOptions {
-  // fp16 halves a session's keys and values (and the bytes its attention gathers); the math stays fp32.
-  KvPrecision kv_precision = default_kv_precision();
-
-  // The environment's SCENESTREAMER_KV_PRECISION (fp32 or fp16), else fp32. Lets every program that loads a model
-  // (server, tools) choose without a flag of its own.
-  static KvPrecision default_kv_precision();
+  // fp16 (the default) halves a session's keys and values and the bytes its attention gathers; the math stays fp32
+  // (realism unchanged within its interval at K = 32: README). Unset: SCENESTREAMER_KV_PRECISION (fp32 or fp16), else
+  // fp16, resolved by Model::create, so every program that loads a model (server, tools) can choose without a flag.
+  std::optional<KvPrecision> kv_precision;
 };
 // "fp32" / "fp16"; INVALID_ARGUMENT otherwise.
 absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name);
@@ -82,7 +81,7 @@ class Model {
   static absl::StatusOr<std::shared_ptr<const Model>> create(Weights weights, ModelOptions options = {});
 
   const ModelConfig& config() const { return weights_.config; }
-  const ModelOptions& options() const { return options_; }
+  KvPrecision kv_precision() const { return *options_.kv_precision; }
   const Weights& weights() const { return weights_; }
 
   // Encodes a map (segments nearest the focus first, at most max_map_segments). FAILED_PRECONDITION when empty.

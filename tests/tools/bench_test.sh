@@ -25,15 +25,26 @@ assert r["gemm_gflops"] > 0
 for n in counts:  # the floor is the counted work at the measured GEMM rate
     assert abs(r["step_ms_at_gemm_peak"][n] - r["step_gflop"][n] / r["gemm_gflops"] * 1e3) < 1e-6, n
 assert r["cached_vs_full_ratio"] > 1, r["cached_vs_full_ratio"]
-assert r["kv_bytes_per_token"] == 2 * 4 * 64 * 4, r["kv_bytes_per_token"]  # small: 4 layers of d 64, K and V
+# small: 4 layers of d 64, K and V, in half floats by default (unless the environment chose)
+import os
+half = os.environ.get("SCENESTREAMER_KV_PRECISION", "fp16") == "fp16"
+assert r["kv_precision"] == ("fp16" if half else "fp32"), r["kv_precision"]
+assert r["kv_bytes_per_token"] == 2 * 4 * 64 * (2 if half else 4), r["kv_bytes_per_token"]
 assert r["session_bytes_after_25_steps"] > 0 and r["session_bytes_after_window"] > 0
 assert r["session_bytes_after_1000_steps"] is None  # not measured with --long-steps 25, and says so
 assert r["lights"] == 16 and r["map_segments"] > 0 and r["model"] == "small"
 PY
+
+"$bin" bench --json --model small --scenario "$scenario" --steps 1 --long-steps 1 --kv-precision fp32 > "$tmp/f32.json"
+/usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); assert r["kv_precision"]=="fp32" and r["kv_bytes_per_token"]==2*4*64*4, r' "$tmp/f32.json"
 
 # Errors name what was wrong.
 if "$bin" bench --steps zero 2> "$tmp/err"; then exit 1; fi
 grep -q -- "--steps: Illegal value 'zero'" "$tmp/err"
 if "$bin" bench --model nope.safetensors --steps 1 2> "$tmp/err"; then exit 1; fi
 grep -q "nope" "$tmp/err"
+if "$bin" bench --kv-precision bf16 --steps 1 2> "$tmp/err"; then exit 1; fi
+grep -q "unknown KV precision 'bf16'" "$tmp/err"
+if SCENESTREAMER_KV_PRECISION=bf16 "$bin" bench --steps 1 --long-steps 1 2> "$tmp/err"; then exit 1; fi
+grep -q "SCENESTREAMER_KV_PRECISION: unknown KV precision 'bf16'" "$tmp/err"
 echo "bench_test: ok"

@@ -1,9 +1,10 @@
-// Sessions whose KV caches store half floats (ModelOptions::kv_precision fp16): the incremental path against a full
-// recompute, against the fp32 path on the same tokens (the stated tolerance), and the determinism guarantees
-// (same seed, any thread count, fork, save/restore) that hold for fp32.
+// The KV caches' two precisions (ModelOptions::kv_precision): fp16 (the default) against a full recompute and against
+// fp32 on the same tokens (the stated tolerance), and the determinism guarantees (same seed at any thread count, fork,
+// save/restore) in each precision.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <thread>
 
 #include "tests/unit/sim/session_fixture.h"
@@ -11,16 +12,11 @@
 namespace ss {
 namespace {
 
+using testing::kv;
 using testing::load_world;
 using testing::same_result;
 using testing::sdc_control;
 using testing::start;
-
-ModelOptions fp16() {
-  ModelOptions o;
-  o.kv_precision = KvPrecision::fp16;
-  return o;
-}
 
 std::vector<StepResult> roll(Session& s, const testing::World& w, int steps) {
   std::vector<StepResult> out;
@@ -40,9 +36,58 @@ bool same_rollout(const std::vector<StepResult>& a, const std::vector<StepResult
   return true;
 }
 
+// One world per precision, loaded once for the suite.
+class PrecisionTest : public ::testing::TestWithParam<KvPrecision> {
+ protected:
+  static void SetUpTestSuite() {
+    for (KvPrecision p : {KvPrecision::fp32, KvPrecision::fp16})
+      worlds_[static_cast<int>(p)] = new testing::World(load_world("small", 1, kv(p)));
+  }
+  static void TearDownTestSuite() {
+    for (auto*& w : worlds_) delete w, w = nullptr;
+  }
+  static const testing::World& w() { return *worlds_[static_cast<int>(GetParam())]; }
+  static inline testing::World* worlds_[2] = {};
+};
+
+INSTANTIATE_TEST_SUITE_P(Precisions, PrecisionTest, ::testing::Values(KvPrecision::fp32, KvPrecision::fp16),
+                         [](const auto& info) { return std::string(kv_precision_name(info.param)); });
+
+TEST(DefaultPrecision, IsFp16UnlessTheEnvironmentSaysOtherwise) {
+  // ctest runs without SCENESTREAMER_KV_PRECISION; a run with it set tests that value instead.
+  const char* env = std::getenv("SCENESTREAMER_KV_PRECISION");
+  auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
+  ASSERT_TRUE(model.ok()) << model.status();
+  EXPECT_EQ(kv_precision_name((*model)->kv_precision()), std::string(env && *env ? env : "fp16"));
+  EXPECT_TRUE((*model)->new_cache().half() == ((*model)->kv_precision() == KvPrecision::fp16));
+}
+
+TEST(DefaultPrecision, AnUnknownEnvironmentValueIsAnError) {
+  const char* old = std::getenv("SCENESTREAMER_KV_PRECISION");
+  const std::string saved = old ? old : "";
+  setenv("SCENESTREAMER_KV_PRECISION", "bf16", 1);
+  auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
+  auto pinned = Model::create(init_weights(*model_config_by_name("small"), 1), kv(KvPrecision::fp32));
+  if (old) setenv("SCENESTREAMER_KV_PRECISION", saved.c_str(), 1); else unsetenv("SCENESTREAMER_KV_PRECISION");
+  ASSERT_FALSE(model.ok());
+  EXPECT_EQ(model.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(model.status().message().find("SCENESTREAMER_KV_PRECISION"), std::string::npos) << model.status();
+  EXPECT_NE(model.status().message().find("'bf16'"), std::string::npos) << model.status();
+  EXPECT_TRUE(pinned.ok()) << "an explicit precision does not read the environment: " << pinned.status();
+}
+
+TEST_P(PrecisionTest, CachesStoreTheirPrecision) {
+  KvCache cache = w().model->new_cache();
+  const size_t layers = w().model->config().decoder_layers;
+  EXPECT_EQ(cache.half(), GetParam() == KvPrecision::fp16);
+  EXPECT_EQ(cache.k.size(), cache.half() ? 0 : layers);
+  EXPECT_EQ(cache.kh.size(), cache.half() ? layers : 0);
+}
+
+// The half-float world.
 class Fp16Test : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() { world_ = new testing::World(load_world("small", 1, fp16())); }
+  static void SetUpTestSuite() { world_ = new testing::World(load_world("small", 1, kv(KvPrecision::fp16))); }
   static void TearDownTestSuite() {
     delete world_;
     world_ = nullptr;
@@ -50,13 +95,6 @@ class Fp16Test : public ::testing::Test {
   static const testing::World& w() { return *world_; }
   static inline testing::World* world_ = nullptr;
 };
-
-TEST_F(Fp16Test, CachesStoreHalfFloats) {
-  KvCache cache = w().model->new_cache();
-  EXPECT_TRUE(cache.half());
-  EXPECT_TRUE(cache.k.empty());
-  EXPECT_EQ(cache.kh.size(), static_cast<size_t>(w().model->config().decoder_layers));
-}
 
 // Incremental decoding in fp16 against a full recompute in fp16 (both round the same keys and values), over a
 // 19-step rollout with agents entering and leaving.
@@ -119,21 +157,21 @@ void expect_fp16_close_to_fp32(const testing::World& f32, const testing::World& 
 }
 
 TEST_F(Fp16Test, HalfFloatKeysStayCloseToFloatKeys) {
-  expect_fp16_close_to_fp32(load_world("small", 1), w(), 2e-3, 1e-3);  // measured: 1.9e-4 and 2.4e-5
+  expect_fp16_close_to_fp32(load_world("small", 1, kv(KvPrecision::fp32)), w(), 2e-3, 1e-3);  // measured: 1.9e-4 and 2.4e-5
 }
 
 TEST(Fp16Trained, HalfFloatKeysStayCloseToFloatKeysWithTheShippedModel) {
   auto weights = load_weights(SS_SOURCE_DIR "/models/default.safetensors");
   ASSERT_TRUE(weights.ok()) << weights.status();
   testing::World f32 = load_world("small", 1), f16 = f32;
-  f32.model = *Model::create(*weights);
-  f16.model = *Model::create(*weights, fp16());
+  f32.model = *Model::create(*weights, kv(KvPrecision::fp32));
+  f16.model = *Model::create(*weights, kv(KvPrecision::fp16));
   f32.map = *f32.model->encode_map(nearest_segments(segment_map(*f32.scenario), scenario_focus(*f32.scenario)));
   f16.map = f32.map;  // the map encoding does not depend on the KV precision
   expect_fp16_close_to_fp32(f32, f16, 1e-2, 1e-2);  // measured: 7.4e-4 and 2.3e-3
 }
 
-TEST_F(Fp16Test, SameSeedSameRolloutAtAnyThreadCount) {
+TEST_P(PrecisionTest, SameSeedSameRolloutAtAnyThreadCount) {
   SessionOptions o;
   o.mode = SessionMode::full;
   o.seed = 9;
@@ -150,7 +188,7 @@ TEST_F(Fp16Test, SameSeedSameRolloutAtAnyThreadCount) {
   for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
 }
 
-TEST_F(Fp16Test, ForkAndSaveRestoreContinueIdentically) {
+TEST_P(PrecisionTest, ForkAndSaveRestoreContinueIdentically) {
   for (SessionMode mode : {SessionMode::motion, SessionMode::full}) {
     SessionOptions o;
     o.mode = mode;

@@ -1,4 +1,5 @@
-// The incremental path (new tokens only, over the KV cache) against a full recompute of the whole history.
+// The incremental path (new tokens only, over the KV cache) against a full recompute of the whole history, with fp32
+// keys and values (the fp16 default's parity is in kv_precision_test).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,7 +11,7 @@ namespace ss {
 namespace {
 
 TEST(Parity, IncrementalMatchesFullRecomputeOver19Steps) {
-  testing::World w = testing::load_world("small");
+  testing::World w = testing::load_world("small", 1, testing::kv(KvPrecision::fp32));
   SessionOptions o;
   o.mode = SessionMode::full;  // agents enter when the model says so
   o.seed = 11;
@@ -81,7 +82,7 @@ Scenario shifted(Scenario s, double dx, double dy) {
 // Asking for some outputs only (the others skip their last layer's self-attention and feed-forward) gives the same
 // rows as asking for all, and the same cache. Large configuration: its kernels take the 32-wide head path.
 TEST(Parity, OutputSubsetMatchesAllOutputs) {
-  testing::World w = testing::load_world("large");
+  testing::World w = testing::load_world("large", 1, testing::kv(KvPrecision::fp32));
   SessionOptions o;
   o.seed = 5;
   Session::Probe probe;
@@ -113,7 +114,7 @@ TEST(Parity, OutputSubsetMatchesAllOutputs) {
 }
 
 TEST(Parity, DecoderIsTranslationInvariant) {
-  testing::World w = testing::load_world("small");
+  testing::World w = testing::load_world("small", 1, testing::kv(KvPrecision::fp32));
   testing::World moved = w;
   moved.scenario = std::make_shared<const Scenario>(shifted(*w.scenario, 1234.5, -2345.25));
   moved.map = *w.model->encode_map(nearest_segments(segment_map(*moved.scenario), scenario_focus(*moved.scenario)));

@@ -19,6 +19,13 @@ struct World {
   std::shared_ptr<const MapContext> map;
 };
 
+// Model options with the KV caches' precision pinned (tests that bind the fp32 numerics, or test both).
+inline ModelOptions kv(KvPrecision p) {
+  ModelOptions o;
+  o.kv_precision = p;
+  return o;
+}
+
 inline World load_world(const std::string& config = "small", uint64_t weight_seed = 1, ModelOptions options = {}) {
   World w;
   auto scenarios = read_scenarios(SS_DATA_DIR "/womd/tfrecord/motion_data_one_scenario.tfrecord");
