@@ -93,7 +93,9 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
     w = load_weights(options.model_path);
     if (!w.ok()) return w.status();
   }
-  auto model = Model::create(std::move(*w));
+  ModelOptions mo;
+  mo.step_threads = options.step_threads;
+  auto model = Model::create(std::move(*w), mo);
   if (!model.ok()) return model.status();
   e->model = *model;
   e->maps = std::make_unique<MapCache>(e->model);

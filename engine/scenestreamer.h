@@ -27,6 +27,7 @@ struct EngineOptions {
   size_t max_scenario_bytes = size_t{64} << 20;
   int max_scenario_tracks = 1024;
   int max_map_features = 20000;
+  int step_threads = 1;  // threads one session's step may use (ModelOptions::step_threads): a lone session's latency
 };
 
 struct EngineScenario {

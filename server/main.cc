@@ -38,6 +38,9 @@ ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV cache
 ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
 ABSL_FLAG(double, evict_idle_s, 30, "A session unused this long may be evicted (least recently used first) for room");
 ABSL_FLAG(int, threads, 0, "Engine calls running at once; 0: the number of cores");
+ABSL_FLAG(int, step_threads, 1,
+          "Threads one session's step may use (its attention shared out; same results at any count). For few "
+          "sessions on many cores: a step that finds them busy runs on its own thread");
 ABSL_FLAG(int, max_watchers, 1024, "Cap on WatchSession streams open at once (they cost no thread each)");
 ABSL_FLAG(int, tick_deadline_ms, 2000, "Default wait of a multi-client tick for its late controllers");
 ABSL_FLAG(double, call_deadline_s, 120, "Deadline of a call whose client set none");
@@ -125,6 +128,7 @@ int main(int argc, char** argv) {
   eo.max_scenario_bytes = static_cast<size_t>(max_message);
   eo.max_scenario_tracks = absl::GetFlag(FLAGS_max_scenario_tracks);
   eo.max_map_features = absl::GetFlag(FLAGS_max_map_features);
+  eo.step_threads = absl::GetFlag(FLAGS_step_threads);
   auto engine = ss::engine_create(eo);
   if (!engine.ok()) {
     spdlog::critical("cannot start: {}", std::string(engine.status().message()));
@@ -134,8 +138,8 @@ int main(int argc, char** argv) {
     spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise). Pass --model FILE or "
                  "put a .safetensors file in models/ !!!", eo.random_config);
   else
-    spdlog::info("model {} (config {}, {} keys and values)", eo.model_path, ss::engine_model_name(**engine),
-                 ss::engine_kv_precision(**engine));
+    spdlog::info("model {} (config {}, {} keys and values, {} threads per step)", eo.model_path,
+                 ss::engine_model_name(**engine), ss::engine_kv_precision(**engine), eo.step_threads);
   spdlog::info("{} scenarios from {}", ss::engine_scenarios(**engine).size(), scenario_dir);
 
   ss::server::Metrics metrics;

@@ -93,20 +93,31 @@ int bench_main(int argc, char** argv) {
   out["gemm_gflops"] = peak;
 
   // Step latency, after the cache window has filled; the work of the timed steps as counted by the decoder.
-  nlohmann::ordered_json p50, p99, gflop, achieved, floor_ms;
-  for (int agents : {16, 32, 64, 128}) {
-    auto s = bench_session(*world, agents, 1);
-    if (!s.ok()) return fail(s.status());
-    for (int i = 0; i < c.window_steps; ++i)
-      if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
+  struct Timed {
     std::vector<double> ms;
-    const double flops_before = world->model->decode_flops((*s)->decode_work());
+    double gflop = 0;  // per step
+  };
+  auto time_steps = [&](const BenchWorld& w, int agents) -> absl::StatusOr<Timed> {
+    auto s = bench_session(w, agents, 1);
+    if (!s.ok()) return s.status();
+    for (int i = 0; i < c.window_steps; ++i)
+      if (auto r = (*s)->step({}); !r.ok()) return r.status();
+    Timed t;
+    const double flops_before = w.model->decode_flops((*s)->decode_work());
     for (int i = 0; i < steps; ++i) {
       const auto t0 = Clock::now();
-      if (auto r = (*s)->step({}); !r.ok()) return fail(r.status());
-      ms.push_back(ms_since(t0));
+      if (auto r = (*s)->step({}); !r.ok()) return r.status();
+      t.ms.push_back(ms_since(t0));
     }
-    const double step_gflop = (world->model->decode_flops((*s)->decode_work()) - flops_before) / steps / 1e9;
+    t.gflop = (w.model->decode_flops((*s)->decode_work()) - flops_before) / steps / 1e9;
+    return t;
+  };
+  nlohmann::ordered_json p50, p99, gflop, achieved, floor_ms;
+  for (int agents : {16, 32, 64, 128}) {
+    auto timed = time_steps(*world, agents);
+    if (!timed.ok()) return fail(timed.status());
+    const std::vector<double>& ms = timed->ms;
+    const double step_gflop = timed->gflop;
     double total_ms = 0;
     for (double m : ms) total_ms += m;
     const std::string key = std::to_string(agents);
@@ -126,6 +137,19 @@ int bench_main(int argc, char** argv) {
   out["step_gflop"] = gflop;
   out["step_gflops_achieved"] = achieved;
   out["step_ms_at_gemm_peak"] = floor_ms;
+
+  // A lone session's step with two threads (ModelOptions::step_threads): the same session, the same bits.
+  ModelOptions two = options;
+  two.step_threads = 2;
+  auto world2 = make_bench_world(absl::GetFlag(FLAGS_bench_scenario), absl::GetFlag(FLAGS_bench_model), 16, two);
+  if (!world2.ok()) return fail(world2.status());
+  auto timed2 = time_steps(*world2, 64);
+  if (!timed2.ok()) return fail(timed2.status());
+  out["step_ms_p50_2_threads"] = {{"64", percentile(timed2->ms, 0.5)}};
+  out["step_2_threads_speedup"] = {{"64", p50["64"].get<double>() / percentile(timed2->ms, 0.5)}};
+  if (!json)
+    std::printf("step, 64 agents, 2 threads: p50 %.1f ms (%.2fx one thread)\n", percentile(timed2->ms, 0.5),
+                out["step_2_threads_speedup"]["64"].get<double>());
 
   // Step 19 of a 64-agent rollout: its new tokens over the cache, against the whole history recomputed.
   auto h = history_batches(*world, 64, 19);

@@ -100,12 +100,22 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
 }  // namespace
 
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
-                       std::span<const QueryKeys* const> query_keys) {
-  return relative_attention(x, p, heads, KeyValueRows(k, v), query_keys);
+                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool) {
+  return relative_attention(x, p, heads, KeyValueRows(k, v), query_keys, pool);
 }
 
+namespace {
+
+// A thread's scratch for the groups it runs.
+struct GroupScratch {
+  Mat kg, vg, s, og, ug, rg, scores;
+  TableTerms table;
+};
+
+}  // namespace
+
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
-                       std::span<const QueryKeys* const> query_keys) {
+                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool) {
   const int n = static_cast<int>(x.rows());
   const int d = static_cast<int>(x.cols());
   const int dh = d / heads;
@@ -121,65 +131,74 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
   for (int h = 0; h < heads; ++h)
     u.middleCols(h * r, r).noalias() = q_rel.middleCols(h * dh, dh) * w_rk.middleRows(h * dh, dh);
 
-  // Queries reading the same key set go together.
-  std::map<const QueryKeys*, std::vector<int>> groups;
-  for (int i = 0; i < n; ++i) groups[query_keys[i]].push_back(i);
+  // Queries reading the same key set go together. Each group writes its own rows of o and rel only, so groups may
+  // run on any thread in any order.
+  std::map<const QueryKeys*, std::vector<int>> by_set;
+  for (int i = 0; i < n; ++i) by_set[query_keys[i]].push_back(i);
+  std::vector<std::pair<const QueryKeys*, const std::vector<int>*>> groups;
+  for (const auto& [set, rows] : by_set)
+    if (!set->keys.empty()) groups.emplace_back(set, &rows);  // no keys: the output is the relation-value bias alone
 
   Mat o = Mat::Zero(n, d);            // attention-weighted values
   Mat rel = Mat::Zero(n, heads * r);  // attention-weighted relation embeddings, projected by W_rv below
-  Mat kg, vg, s, og, ug, rg, scores;
-  TableTerms table;
-  for (const auto& [set, rows] : groups) {
+  std::vector<GroupScratch> scratch(pool ? pool->threads() : 1);
+  auto run_group = [&](int group, int thread) {
+    const QueryKeys* set = groups[group].first;
+    const std::vector<int>& rows = *groups[group].second;
+    GroupScratch& t = scratch[thread];
     const int m = static_cast<int>(set->keys.size());
     const int g = static_cast<int>(rows.size());
     const int mp = set->posed();
-    if (m == 0) continue;  // nothing to read: the output is the relation-value bias alone
     if (g <= 2) {
       for (int i : rows)
-        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, scores, table, o.row(i).data(),
+        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, t.scores, t.table, o.row(i).data(),
                    rel.row(i).data());
-      continue;
+      return;
     }
     // Keys 0..m-1 of k in order (a whole map) stored as floats: read in place; otherwise gather the rows once for
     // the group (converting half floats).
     const bool identity = !kv.half() && m == kv.rows && std::is_sorted(set->keys.begin(), set->keys.end()) &&
                           set->keys.front() == 0 && set->keys.back() == m - 1;
     if (!identity) {
-      kg.resize(m, d);
-      vg.resize(m, d);
+      t.kg.resize(m, d);
+      t.vg.resize(m, d);
       for (int j = 0; j < m; ++j) {
         const size_t at = static_cast<size_t>(set->keys[j]) * d;
         if (kv.half()) {
-          halves_to_floats(kv.kh + at, d, kg.row(j).data());
-          halves_to_floats(kv.vh + at, d, vg.row(j).data());
+          halves_to_floats(kv.kh + at, d, t.kg.row(j).data());
+          halves_to_floats(kv.vh + at, d, t.vg.row(j).data());
         } else {
-          std::copy_n(kv.k + at, d, kg.row(j).data());
-          std::copy_n(kv.v + at, d, vg.row(j).data());
+          std::copy_n(kv.k + at, d, t.kg.row(j).data());
+          std::copy_n(kv.v + at, d, t.vg.row(j).data());
         }
       }
     }
-    const MatMap kk = identity ? MatMap(kv.k, m, d) : MatMap(kg.data(), m, d);
-    const MatMap vv = identity ? MatMap(kv.v, m, d) : MatMap(vg.data(), m, d);
+    const MatMap kk = identity ? MatMap(kv.k, m, d) : MatMap(t.kg.data(), m, d);
+    const MatMap vv = identity ? MatMap(kv.v, m, d) : MatMap(t.vg.data(), m, d);
     for (int h = 0; h < heads; ++h) {
       // Scores, queries down and keys across: g x m.
-      s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();
-      ug = u(rows, Eigen::seqN(h * r, r));  // g x r
+      t.s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();
+      t.ug = u(rows, Eigen::seqN(h * r, r));  // g x r
       if (!set->uniform) {
-        s.leftCols(mp).noalias() += ug * set->relation.transpose();
-        if (mp < m) table.add_scores(*set, ug.data(), g, r, s.data(), m);
+        t.s.leftCols(mp).noalias() += t.ug * set->relation.transpose();
+        if (mp < m) t.table.add_scores(*set, t.ug.data(), g, r, t.s.data(), m);
       }
-      kernel_softmax_rows(s.data(), g, m, m, scale);
-      og.noalias() = s * vv.middleCols(h * dh, dh);  // g x dh
-      for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = og.row(c);
+      kernel_softmax_rows(t.s.data(), g, m, m, scale);
+      t.og.noalias() = t.s * vv.middleCols(h * dh, dh);  // g x dh
+      for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = t.og.row(c);
       if (set->uniform) {
-        rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one
+        t.rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one
       } else {
-        rg.noalias() = s.leftCols(mp) * set->relation;  // g x r
-        if (mp < m) table.add_weighted(*set, s.data(), g, r, m, rg.data());
+        t.rg.noalias() = t.s.leftCols(mp) * set->relation;  // g x r
+        if (mp < m) t.table.add_weighted(*set, t.s.data(), g, r, m, t.rg.data());
       }
-      for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = rg.row(c);
+      for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c);
     }
-  }
+  };
+  const int tasks = static_cast<int>(groups.size());
+  if (pool) pool->parallel_for(tasks, run_group);
+  else
+    for (int i = 0; i < tasks; ++i) run_group(i, 0);
   // out_i^h += W_rv^h (sum_j a_ij h_ij) + b_rv^h
   for (int h = 0; h < heads; ++h)
     o.middleCols(h * dh, dh).noalias() += rel.middleCols(h * r, r) * w_rv.middleRows(h * dh, dh).transpose();

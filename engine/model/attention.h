@@ -15,6 +15,7 @@
 #include "engine/geometry/geometry.h"
 #include "engine/model/linalg.h"
 #include "engine/model/vocab.h"
+#include "engine/model/worker_pool.h"
 
 namespace ss {
 
@@ -91,10 +92,11 @@ struct KeyValueRows {
 
 // Attention for a batch of queries. `x`: the queries' normalised inputs (n x d). `k`, `v`: projected keys and values
 // of every key the queries may name. Queries that share one QueryKeys are computed together with matrix products.
-// Returns the output projection (n x d).
+// Returns the output projection (n x d). With a pool, the key sets' groups of queries run on its threads (the same
+// bits as without).
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
-                       std::span<const QueryKeys* const> query_keys);
+                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool = nullptr);
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
-                       std::span<const QueryKeys* const> query_keys);
+                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool = nullptr);
 
 }  // namespace ss

@@ -103,28 +103,37 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   for (const DecoderToken& t : tokens) fresh.push_back(anchor_of(t));
   auto anchor = [&](int j) -> const Anchor& { return j < c ? cache.anchors[j] : fresh[j - c]; };
 
+  const int n = static_cast<int>(tokens.size());
   KeySets out;
-  SelfKeySelector selector(cache.tokens, tokens, config().window_steps, limit_);
-  SelfKeys keys;
-  for (size_t i = 0; i < tokens.size(); ++i) {
-    selector.select(static_cast<int>(i), keys);
+  out.sets.resize(n);
+  out.per_query.resize(n);
+  // One selector (and its scratch) per thread: each query's keys depend on the query alone.
+  std::vector<SelfKeySelector> selectors(1, SelfKeySelector(cache.tokens, tokens, config().window_steps, limit_));
+  if (pool_) selectors.resize(pool_->threads(), selectors[0]);
+  std::vector<SelfKeys> keys(selectors.size());
+  auto select = [&](int i, int thread) {
+    SelfKeys& k = keys[thread];
+    selectors[thread].select(i, k);
     // Pairs with a position on both sides go through the relation MLP; the others depend only on the step
     // difference and share the rows of the table.
     auto set = std::make_shared<QueryKeys>();
-    set->keys = keys.posed;
-    for (int j : keys.unposed) set->add_table_row(tokens[i].step - token(j).step);
+    set->keys = k.posed;
+    for (int j : k.unposed) set->add_table_row(tokens[i].step - token(j).step);
     Mat f(set->keys.size(), kRelationFeatures);
     for (size_t e = 0; e < set->keys.size(); ++e) {
       const RelationFeatures rf = relation_features(fresh[i], anchor(set->keys[e]));
       for (int col = 0; col < kRelationFeatures; ++col) f(e, col) = rf[col];
     }
     set->relation = relation_embedding(f, self_relation_);
-    set->keys.insert(set->keys.end(), keys.unposed.begin(), keys.unposed.end());
+    set->keys.insert(set->keys.end(), k.unposed.begin(), k.unposed.end());
     for (int& j : set->keys) j = cache.row(j);  // the attention reads keys and values at their ring rows
     set->table = &self_relation_by_step_;
-    out.per_query.push_back(set.get());
-    out.sets.push_back(std::move(set));
-  }
+    out.per_query[i] = set.get();
+    out.sets[i] = std::move(set);
+  };
+  if (pool_) pool_->parallel_for(n, select);
+  else
+    for (int i = 0; i < n; ++i) select(i, 0);
   return out;
 }
 
@@ -228,10 +237,12 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
     const MatMap map_keys(map.cross_keys[l].data(), map.size(), c.d_model);
     const MatMap map_values(map.cross_values[l].data(), map.size(), c.d_model);
     if (l > 0 || static_cast<int>(computed.size()) == n) {
-      x += relative_attention(layer_norm(x, L.cross_norm), L.cross, c.heads, map_keys, map_values, cross.per_query);
+      x += relative_attention(layer_norm(x, L.cross_norm), L.cross, c.heads, map_keys, map_values, cross.per_query,
+                              pool_.get());
     } else if (!computed.empty()) {
       const Mat xc = layer_norm(x(computed, Eigen::all), L.cross_norm);
-      x(computed, Eigen::all) += relative_attention(xc, L.cross, c.heads, map_keys, map_values, cross_computed);
+      x(computed, Eigen::all) +=
+          relative_attention(xc, L.cross, c.heads, map_keys, map_values, cross_computed, pool_.get());
     }
     const Mat xs = layer_norm(x, L.self_norm);
     const Mat k = linear(xs, L.self.key), v = linear(xs, L.self.value);
@@ -244,9 +255,9 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
     if (l + 1 == c.decoder_layers) {
       // Every token's keys and values are in the cache now; what follows only shapes the outputs asked for.
       x = x(outputs, Eigen::all).eval();
-      x += relative_attention(xs(outputs, Eigen::all), L.self, c.heads, kv, self_out);
+      x += relative_attention(xs(outputs, Eigen::all), L.self, c.heads, kv, self_out, pool_.get());
     } else {
-      x += relative_attention(xs, L.self, c.heads, kv, self.per_query);
+      x += relative_attention(xs, L.self, c.heads, kv, self.per_query, pool_.get());
     }
     Mat f = linear(layer_norm(x, L.ffn_norm), L.ffn1);
     relu_inplace(f);

@@ -31,6 +31,7 @@ absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name) {
 const char* kv_precision_name(KvPrecision p) { return p == KvPrecision::fp16 ? "fp16" : "fp32"; }
 
 Model::Model(Weights w, ModelOptions options) : weights_(std::move(w)), options_(options) {
+  if (options_.step_threads > 1) pool_ = std::make_unique<WorkerPool>(options_.step_threads);
   const ModelConfig& c = weights_.config;
   limit_ = {c.knn_k, c.knn_radius, c.knn_always};
   poly_fc1_ = lin("encoder.polyline.fc1", false);
@@ -99,6 +100,8 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, Mode
     if (it->second.shape != spec.shape)
       return absl::InvalidArgumentError(absl::StrCat("weights tensor ", spec.name, " has the wrong shape"));
   }
+  if (options.step_threads < 1 || options.step_threads > 64)
+    return absl::InvalidArgumentError(absl::StrCat("step threads must be 1 to 64, not ", options.step_threads));
   if (!options.kv_precision) {
     auto p = kv_precision_from_env();
     if (!p.ok()) return p.status();

@@ -64,6 +64,9 @@ struct ModelOptions {
   // (realism unchanged within its interval at K = 32: README). Unset: SCENESTREAMER_KV_PRECISION (fp32 or fp16), else
   // fp16, resolved by Model::create, so every program that loads a model (server, tools) can choose without a flag.
   std::optional<KvPrecision> kv_precision;
+  // Threads one decode call may use: its attention's groups of queries are shared out (the same bits at any count).
+  // 1: the calling thread alone. For a lone session's latency; a server busy with many sessions gains nothing.
+  int step_threads = 1;
 };
 // "fp32" / "fp16"; INVALID_ARGUMENT otherwise.
 absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name);
@@ -82,6 +85,7 @@ class Model {
 
   const ModelConfig& config() const { return weights_.config; }
   KvPrecision kv_precision() const { return *options_.kv_precision; }
+  int step_threads() const { return pool_ ? pool_->threads() : 1; }
   const Weights& weights() const { return weights_; }
 
   // Encodes a map (segments nearest the focus first, at most max_map_segments). FAILED_PRECONDITION when empty.
@@ -140,6 +144,7 @@ class Model {
 
   Weights weights_;
   ModelOptions options_;
+  std::unique_ptr<WorkerPool> pool_;  // step_threads > 1 only
   NeighbourLimit limit_;
   LinearParams poly_fc1_, poly_fc2_, poly_fc3_, poly_fc4_;
   NormParams poly_norm1_, poly_norm2_, encoder_final_norm_, decoder_final_norm_;

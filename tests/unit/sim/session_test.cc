@@ -119,6 +119,36 @@ TEST_F(SessionTest, SameRolloutWhateverTheThreadCount) {
   for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
 }
 
+TEST_F(SessionTest, StepThreadsGiveTheSameRollout) {
+  SessionOptions o;
+  o.mode = SessionMode::full;
+  o.seed = 9;
+  auto alone = start(w(), o);
+  const auto reference = roll(*alone, w(), 5);
+  // The same weights with three threads per decode call: a lone session, then two at once (whichever finds the
+  // pool busy runs its attention on its own thread).
+  ModelOptions threaded;
+  threaded.step_threads = 3;
+  auto model = Model::create(w().model->weights(), threaded);
+  ASSERT_TRUE(model.ok()) << model.status();
+  ASSERT_EQ((*model)->step_threads(), 3);
+  testing::World w3 = w();
+  w3.model = *model;
+  auto lone = start(w3, o);
+  EXPECT_TRUE(same_rollout(reference, roll(*lone, w3, 5)));
+  std::vector<std::vector<StepResult>> results(2);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&, t] {
+      auto s = start(w3, o);
+      results[t] = roll(*s, w3, 5);
+    });
+  for (auto& t : threads) t.join();
+  for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
+  threaded.step_threads = 0;
+  EXPECT_FALSE(Model::create(w().model->weights(), threaded).ok());
+}
+
 TEST_F(SessionTest, FullModeGeneratesItsOwnAgents) {
   SessionOptions o;
   o.mode = SessionMode::full;
