@@ -109,7 +109,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   out.per_query.resize(n);
   // One selector (and its scratch) per thread: each query's keys depend on the query alone.
   std::vector<SelfKeySelector> selectors(1, SelfKeySelector(cache.tokens, tokens, config().window_steps, limit_));
-  if (pool_) selectors.resize(pool_->threads(), selectors[0]);
+  if (pool_ && n > 1) selectors.resize(pool_->threads(), selectors[0]);
   std::vector<SelfKeys> keys(selectors.size());
   auto select = [&](int i, int thread) {
     SelfKeys& k = keys[thread];
@@ -131,7 +131,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
     out.per_query[i] = set.get();
     out.sets[i] = std::move(set);
   };
-  if (pool_) pool_->parallel_for(n, select);
+  if (selectors.size() > 1) pool_->parallel_for(n, select);
   else
     for (int i = 0; i < n; ++i) select(i, 0);
   return out;

@@ -25,6 +25,9 @@ assert r["gemm_gflops"] > 0
 for n in counts:  # the floor is the counted work at the measured GEMM rate
     assert abs(r["step_ms_at_gemm_peak"][n] - r["step_gflop"][n] / r["gemm_gflops"] * 1e3) < 1e-6, n
 assert r["cached_vs_full_ratio"] > 1, r["cached_vs_full_ratio"]
+# The 64-agent step again with two threads in the step (the same session): its time and the ratio to one thread.
+t2 = r["step_ms_p50_2_threads"]["64"]
+assert t2 > 0 and abs(r["step_2_threads_speedup"]["64"] - r["step_ms_p50"]["64"] / t2) < 1e-9, r
 # small: 4 layers of d 64, K and V, in half floats by default (unless the environment chose)
 import os
 half = os.environ.get("SCENESTREAMER_KV_PRECISION", "fp16") == "fp16"
