@@ -101,6 +101,20 @@ TEST_F(SessionTest, SameSeedSameRolloutOtherSeedAnother) {
   }
 }
 
+// `sessions` sessions of `w` with options `o`, each rolled `steps` steps on its own thread, all at once.
+std::vector<std::vector<StepResult>> rollouts_at_once(const testing::World& w, const SessionOptions& o, int sessions,
+                                                      int steps) {
+  std::vector<std::vector<StepResult>> results(sessions);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < sessions; ++t)
+    threads.emplace_back([&, t] {
+      auto s = start(w, o);
+      results[t] = roll(*s, w, steps);
+    });
+  for (auto& t : threads) t.join();
+  return results;
+}
+
 TEST_F(SessionTest, SameRolloutWhateverTheThreadCount) {
   SessionOptions o;
   o.mode = SessionMode::full;
@@ -108,15 +122,7 @@ TEST_F(SessionTest, SameRolloutWhateverTheThreadCount) {
   auto alone = start(w(), o);
   const auto reference = roll(*alone, w(), 5);
   // Four sessions stepped on four threads at once give the reference rollout, bit for bit.
-  std::vector<std::vector<StepResult>> results(4);
-  std::vector<std::thread> threads;
-  for (int t = 0; t < 4; ++t)
-    threads.emplace_back([&, t] {
-      auto s = start(w(), o);
-      results[t] = roll(*s, w(), 5);
-    });
-  for (auto& t : threads) t.join();
-  for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
+  for (const auto& r : rollouts_at_once(w(), o, 4, 5)) EXPECT_TRUE(same_rollout(reference, r));
 }
 
 TEST_F(SessionTest, StepThreadsGiveTheSameRollout) {
@@ -136,15 +142,7 @@ TEST_F(SessionTest, StepThreadsGiveTheSameRollout) {
   w3.model = *model;
   auto lone = start(w3, o);
   EXPECT_TRUE(same_rollout(reference, roll(*lone, w3, 5)));
-  std::vector<std::vector<StepResult>> results(2);
-  std::vector<std::thread> threads;
-  for (int t = 0; t < 2; ++t)
-    threads.emplace_back([&, t] {
-      auto s = start(w3, o);
-      results[t] = roll(*s, w3, 5);
-    });
-  for (auto& t : threads) t.join();
-  for (const auto& r : results) EXPECT_TRUE(same_rollout(reference, r));
+  for (const auto& r : rollouts_at_once(w3, o, 2, 5)) EXPECT_TRUE(same_rollout(reference, r));
   threaded.step_threads = 0;
   EXPECT_FALSE(Model::create(w().model->weights(), threaded).ok());
 }
