@@ -9,13 +9,13 @@
 set -eu
 
 # The server's and the health probe's run-time libraries (their other dependencies come with these).
-RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10 libprometheus-cpp-pull1.0"
+RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10 libprometheus-cpp-pull1.0 libjemalloc2"
 # CMake configures the whole tree (tests and benchmarks too), so their headers are part of a build.
 BUILD="
   build-essential cmake ninja-build pkg-config
   protobuf-compiler libprotobuf-dev
   libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libssl-dev openssl
-  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev
+  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev libjemalloc-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 "
 ALL="$BUILD
@@ -29,6 +29,7 @@ ALL="$BUILD
   libtorch-dev libopenblas0-openmp
   python3-torch
 "
+# libjemalloc-dev: the server's allocator (server/allocator.h), linked in place of glibc's malloc.
 # python3-numpy, -setuptools, -wheel and -venv: the Python package (python/), its build and its install test.
 # libtorch-dev and libopenblas0-openmp join this list with the trainer (training/), which is the only part that needs
 # them: they pull in ~330 shared libraries. python3-torch (on top of libtorch): the PPO example

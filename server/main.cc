@@ -64,13 +64,10 @@ ABSL_FLAG(std::string, tokens_file, "",
 ABSL_FLAG(int, health_port, -1,
           "Also serve grpc.health.v1.Health alone, plaintext and without tokens, on --health_host:PORT (for probes "
           "that cannot do TLS, like Kubernetes' gRPC probes; -1: off, 0: a free port)");
-// The two remedies for the RSS that rose round by round under identical load (README, Faults; server/allocator.h).
-ABSL_FLAG(int, malloc_arena_max, -1,
-          "Cap on glibc's malloc arenas (mallopt M_ARENA_MAX); -1: --threads + 2 (an arena per engine thread and two "
-          "for gRPC's); 0: glibc's default (8 per core, or MALLOC_ARENA_MAX from the environment)");
+// The RSS that rose round by round under identical load (README, Faults; server/allocator.h).
 ABSL_FLAG(double, malloc_trim_s, 10,
-          "After sessions close, give the memory malloc holds free back to the kernel (malloc_trim) at most this "
-          "often, seconds; 0: never");
+          "After sessions close, give the pages jemalloc holds unused back to the kernel (an arena purge) at most "
+          "this often, seconds; 0: only as jemalloc's decay does (10 s after they fall unused, on later allocations)");
 ABSL_FLAG(std::string, health_host, "127.0.0.1", "Address of --health_port");
 
 namespace {
@@ -101,15 +98,15 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(absl::GetFlag(FLAGS_log_level)));
   const int compute_threads = absl::GetFlag(FLAGS_threads) > 0 ? absl::GetFlag(FLAGS_threads)
                                                                : static_cast<int>(std::thread::hardware_concurrency());
-  // Before any thread starts: the arenas' cap (server/allocator.h has the measurements behind it).
-  const int arena_max = absl::GetFlag(FLAGS_malloc_arena_max);
-  ss::server::allocator_set_arena_max(arena_max < 0 ? compute_threads + 2 : arena_max);
-  spdlog::info("malloc: {} arenas at most, trimmed {}", arena_max < 0 ? std::to_string(compute_threads + 2)
-                                                        : arena_max == 0 ? std::string("glibc's default")
-                                                                         : std::to_string(arena_max),
+  const absl::StatusOr<std::string> allocator = ss::server::allocator_version();
+  if (!allocator.ok()) {
+    spdlog::critical("cannot start: {}", std::string(allocator.status().message()));
+    return 1;
+  }
+  spdlog::info("malloc: {}, unused pages given back {}", *allocator,
                absl::GetFlag(FLAGS_malloc_trim_s) > 0
                    ? fmt::format("at most every {:g} s after sessions close", absl::GetFlag(FLAGS_malloc_trim_s))
-                   : std::string("never (--malloc_trim_s=0)"));
+                   : std::string("by jemalloc's decay only (--malloc_trim_s=0)"));
 
   // SIGTERM and SIGINT are taken by one thread (sigwait), so no handler runs inside gRPC's threads.
   sigset_t signals;

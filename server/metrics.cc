@@ -41,10 +41,11 @@ class Metrics::Gauges : public prometheus::Collectable {
                    m_.cache_bytes ? static_cast<double>(m_.cache_bytes()) : 0),
             family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0),
             // What RSS is made of (server/allocator.h): bytes in use vs bytes malloc holds free.
-            family("scenestreamer_malloc_in_use_bytes", "Bytes allocated with malloc and not freed (mallinfo2).",
+            family("scenestreamer_malloc_in_use_bytes", "Bytes allocated with malloc and not freed (jemalloc stats.allocated).",
                    static_cast<double>(a.in_use)),
             family("scenestreamer_malloc_free_bytes",
-                   "Bytes freed but kept by malloc's arenas, not returned to the kernel (mallinfo2).",
+                   "Bytes resident in the allocator beyond those in use: unused pages not yet given back, metadata "
+                   "(jemalloc stats.resident - stats.allocated).",
                    static_cast<double>(a.free)),
             family("scenestreamer_resident_bytes", "The server's resident memory (RSS).",
                    static_cast<double>(a.resident))};
@@ -66,7 +67,7 @@ Metrics::Metrics()
       calls_(counter(*registry_, "scenestreamer_calls_total", "Calls received, by method.")),
       evictions_(counter(*registry_, "scenestreamer_evictions_total", "Idle sessions evicted to make room.")),
       trims_(counter(*registry_, "scenestreamer_malloc_trims_total",
-                     "malloc_trim calls after sessions closed (--malloc_trim_s).")) {
+                     "Allocator purges (unused pages given back) after sessions closed (--malloc_trim_s).")) {
   // Series without labels exist from the start, so a scrape shows them at zero.
   steps_.Add({});
   step_seconds_.Add({}, kStepBuckets);

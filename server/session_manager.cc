@@ -839,8 +839,8 @@ void SessionManager::reaper() {
   auto last_trim = Clock::now();
   while (!stop_) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    // Give what closed sessions freed back to the kernel (README, Faults): without this, glibc keeps it in the arena
-    // of whichever gRPC thread freed it, and RSS after identical rounds of load rose round by round.
+    // Give what closed sessions freed back to the kernel now (README, Faults; server/allocator.h), rather than when
+    // jemalloc's decay gets to it: an idle arena's dirty pages decay only when it allocates again.
     if (options_.malloc_trim_interval_s > 0 && closed_since_trim_ > 0 &&
         Clock::now() - last_trim >= std::chrono::duration<double>(options_.malloc_trim_interval_s)) {
       const int closed = closed_since_trim_.exchange(0);
@@ -848,7 +848,7 @@ void SessionManager::reaper() {
       const int64_t released = allocator_trim();
       last_trim = Clock::now();
       metrics_.count_malloc_trim();
-      spdlog::debug("malloc_trim after {} sessions closed: RSS {:+.1f} MB in {:.1f} ms", closed,
+      spdlog::debug("allocator purge after {} sessions closed: RSS {:+.1f} MB in {:.1f} ms", closed,
                     -static_cast<double>(released) / (1 << 20),
                     std::chrono::duration<double, std::milli>(last_trim - t0).count());
     }

@@ -36,8 +36,8 @@ struct ManagerOptions {
   int compute_threads = 2;           // engine calls running at once
   int default_tick_deadline_ms = 2000;
   int max_watchers = 1024;           // WatchSession streams open at once, over all sessions
-  // Once sessions closed (or were evicted), at most this often: malloc_trim(0) from the reaper thread, so what they
-  // freed leaves the resident set rather than staying in malloc's arenas (server/allocator.h). 0: never.
+  // Once sessions closed (or were evicted), at most this often: an allocator purge from the reaper thread, so what
+  // they freed leaves the resident set now rather than at jemalloc's decay (server/allocator.h). 0: never.
   double malloc_trim_interval_s = 0;
 };
 

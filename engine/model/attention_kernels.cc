@@ -159,7 +159,9 @@ void halves_to_floats(const uint16_t* x, int n, float* out) {
 }
 #endif
 
-#if defined(__F16C__) && defined(__AVX2__) && defined(__FMA__)
+#if defined(__AVX512F__)
+// The half-float forms are the AVX-512 float kernels below on converted rows.
+#elif defined(__F16C__) && defined(__AVX2__) && defined(__FMA__)
 namespace {
 
 inline __m256 load_h(const uint16_t* p) { return _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))); }
@@ -259,19 +261,24 @@ inline void store4(__m512 z, float* p0, float* p1, float* p2, float* p3) {
   *p3 = lanes[12];
 }
 
-// HV = dh / 16 vectors per head (1 or 2); heads in groups of four.
-template <int HV>
-void key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m, float* scores) {
+// Sixteen key or value elements as floats: loaded, or converted from half floats.
+inline __m512 load16(const float* p) { return _mm512_loadu_ps(p); }
+inline __m512 load16(const uint16_t* p) {
+  return _mm512_cvtph_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)));
+}
+
+// HV = dh / 16 vectors per head (1 or 2); heads in groups of four. T: float, or uint16_t for half floats.
+template <int HV, typename T>
+void key_scores(const AttentionShape& s, const float* q, const T* k, const int* keys, int m, float* scores) {
   const int d = s.d();
   for (int j = 0; j < m; ++j) {
-    const float* kr = k + static_cast<size_t>(keys[j]) * d;
+    const T* kr = k + static_cast<size_t>(keys[j]) * d;
     for (int h = 0; h < s.heads; h += 4) {
       __m512 acc[4];
       for (int g = 0; g < 4; ++g) {
         const int base = (h + g) * s.dh;
-        acc[g] = _mm512_mul_ps(_mm512_loadu_ps(q + base), _mm512_loadu_ps(kr + base));
-        if constexpr (HV == 2)
-          acc[g] = _mm512_fmadd_ps(_mm512_loadu_ps(q + base + 16), _mm512_loadu_ps(kr + base + 16), acc[g]);
+        acc[g] = _mm512_mul_ps(_mm512_loadu_ps(q + base), load16(kr + base));
+        if constexpr (HV == 2) acc[g] = _mm512_fmadd_ps(_mm512_loadu_ps(q + base + 16), load16(kr + base + 16), acc[g]);
       }
       store4(sum4(acc[0], acc[1], acc[2], acc[3]), scores + h * m + j, scores + (h + 1) * m + j,
              scores + (h + 2) * m + j, scores + (h + 3) * m + j);
@@ -279,18 +286,18 @@ void key_scores(const AttentionShape& s, const float* q, const float* k, const i
   }
 }
 
-template <int HV>
-void weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m, float* out) {
+template <int HV, typename T>
+void weighted_values(const AttentionShape& s, const float* a, const T* v, const int* keys, int m, float* out) {
   const int d = s.d();
   for (int h = 0; h < s.heads; h += 4) {
     __m512 acc[4 * HV];
     for (int i = 0; i < 4 * HV; ++i) acc[i] = _mm512_loadu_ps(out + h * s.dh + 16 * i);
     for (int j = 0; j < m; ++j) {
-      const float* vr = v + static_cast<size_t>(keys[j]) * d + h * s.dh;
+      const T* vr = v + static_cast<size_t>(keys[j]) * d + h * s.dh;
       for (int g = 0; g < 4; ++g) {
         const __m512 w = _mm512_set1_ps(a[(h + g) * m + j]);
         for (int i = 0; i < HV; ++i)
-          acc[g * HV + i] = _mm512_fmadd_ps(w, _mm512_loadu_ps(vr + g * s.dh + 16 * i), acc[g * HV + i]);
+          acc[g * HV + i] = _mm512_fmadd_ps(w, load16(vr + g * s.dh + 16 * i), acc[g * HV + i]);
       }
     }
     for (int i = 0; i < 4 * HV; ++i) _mm512_storeu_ps(out + h * s.dh + 16 * i, acc[i]);
@@ -311,6 +318,20 @@ void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, 
 void kernel_weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
                             float* out) {
   if (!fast_shape(s)) return kernel_weighted_values_plain(s, a, v, keys, m, out);
+  if (s.dh == 32) return weighted_values<2>(s, a, v, keys, m, out);
+  weighted_values<1>(s, a, v, keys, m, out);
+}
+
+void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
+                           float* scores) {
+  if (!fast_shape(s) || kernels_forced_plain()) return kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
+  if (s.dh == 32) return key_scores<2>(s, q, k, keys, m, scores);
+  key_scores<1>(s, q, k, keys, m, scores);
+}
+
+void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
+                                float* out) {
+  if (!fast_shape(s) || kernels_forced_plain()) return kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
   if (s.dh == 32) return weighted_values<2>(s, a, v, keys, m, out);
   weighted_values<1>(s, a, v, keys, m, out);
 }

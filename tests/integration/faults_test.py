@@ -41,7 +41,7 @@ def wait_for(predicate, timeout, what):
 
 class FaultsTest(ServerTestCase):
     # --malloc_trim_s=1 rather than the default 10 s, so a round's memory is given back within a second of its last
-    # close (the default --malloc_arena_max=2 stays).
+    # close (an allocator purge: server/allocator.h).
     server_flags = (f"--idle_timeout_s={IDLE_S}", "--malloc_trim_s=1")
 
     @classmethod

@@ -4,7 +4,7 @@ killed mid-call and mid-stream, a deadline passing in a 1000-tick call, 20 cance
 session closed. After each round (and a pause for the reaper) it prints the server's RSS and malloc's figures.
 
   SS_SERVER=... SS_TOOL=... SS_LOAD=... SS_WOMD_DIR=... PYTHONPATH=build/python:tests/integration \\
-    /usr/bin/python3 tests/integration/memory_rounds.py --rounds 8 [--env MALLOC_ARENA_MAX=2] [-- --server_flag ...]
+    /usr/bin/python3 tests/integration/memory_rounds.py --rounds 8 [--env MALLOC_CONF=narenas:2] [-- --server_flag ...]
 """
 import argparse
 import json

@@ -1,0 +1,91 @@
+#!/bin/sh
+# Server throughput, A/B: each round runs every server given, in turn, on one loopback port, under the same load
+# (build/client_examples/scenestreamer-load), and prints one JSON line per run: the load generator's figures plus the
+# label, the round and the server's peak RSS. Interleaving the builds round by round is what makes their ratio
+# meaningful on a machine whose load drifts (README, Speed).
+#
+#   bench/server_ab.sh [-r ROUNDS] [-c CLIENTS] [-s STEPS] [-d DENSIFY] LABEL=SERVER_BINARY[:ENV=VALUE] ...
+#
+# e.g. bench/server_ab.sh -r 4 A=/tmp/ab-a/build/server/scenestreamer-server C=build/server/scenestreamer-server
+# An ENV=VALUE after a colon is set for that server only (LD_PRELOAD=..., SCENESTREAMER_KV_PRECISION=fp32).
+# Every server runs with --threads 2, the trained default model and the real val scenarios, as in the README.
+set -eu
+
+ROUNDS=4 CLIENTS=32 STEPS=30 DENSIFY=64
+while getopts r:c:s:d: opt; do
+  case $opt in
+    r) ROUNDS=$OPTARG ;;
+    c) CLIENTS=$OPTARG ;;
+    s) STEPS=$OPTARG ;;
+    d) DENSIFY=$OPTARG ;;
+    *) echo "usage: $0 [-r ROUNDS] [-c CLIENTS] [-s STEPS] [-d DENSIFY] LABEL=SERVER[:ENV=VALUE] ..." >&2; exit 2 ;;
+  esac
+done
+shift $((OPTIND - 1))
+[ $# -ge 1 ] || { echo "$0: give at least one LABEL=SERVER_BINARY" >&2; exit 2; }
+
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+LOAD=${LOAD:-$ROOT/build/client_examples/scenestreamer-load}
+MODEL=${MODEL:-$ROOT/models/default.safetensors}
+SCENARIOS=${SCENARIOS:-$ROOT/../shared/data/womd/json/val}
+PORT=${PORT:-50091}
+for f in "$LOAD" "$MODEL"; do [ -e "$f" ] || { echo "$0: $f is missing (build first)" >&2; exit 1; }; done
+[ -d "$SCENARIOS" ] || { echo "$0: scenario directory $SCENARIOS is missing" >&2; exit 1; }
+for spec in "$@"; do
+  bin=${spec#*=}; bin=${bin%%:*}
+  [ -x "$bin" ] || { echo "$0: server $bin (from '$spec') is not an executable" >&2; exit 1; }
+done
+
+TMP=$(mktemp -d)
+trap 'rm -rf "$TMP"' EXIT
+
+# Peak RSS in kB of process $1 while it runs, written to $2 when it ends.
+watch_rss() {
+  peak=0
+  while [ -r "/proc/$1/status" ]; do
+    now=$(awk '/^VmHWM:/ {print $2}' "/proc/$1/status" 2>/dev/null || echo 0)
+    [ -n "$now" ] && [ "$now" -gt "$peak" ] && peak=$now
+    sleep 0.5
+  done
+  echo "$peak" > "$2"
+}
+
+round=1
+while [ "$round" -le "$ROUNDS" ]; do
+  for spec in "$@"; do
+    label=${spec%%=*}
+    rest=${spec#*=}
+    bin=${rest%%:*}
+    envs=""
+    [ "$rest" != "$bin" ] && envs=${rest#*:}
+    # shellcheck disable=SC2086  # envs is a list of NAME=VALUE words
+    env $envs "$bin" --host 127.0.0.1 --port "$PORT" --threads 2 --model "$MODEL" --scenario_dir "$SCENARIOS" \
+      --metrics_port -1 --log_level warn > "$TMP/server.log" 2>&1 &
+    pid=$!
+    # Ready when its port accepts a connection (older builds have no health service; gRPC listens once the model and
+    # scenarios are loaded).
+    i=0
+    until /usr/bin/python3 -c 'import socket, sys; socket.create_connection(("127.0.0.1", int(sys.argv[1])), 1)' \
+        "$PORT" 2> /dev/null; do
+      i=$((i + 1))
+      if [ "$i" -gt 300 ] || ! kill -0 "$pid" 2> /dev/null; then
+        echo "$0: server $label did not come up:" >&2; cat "$TMP/server.log" >&2; kill "$pid" 2> /dev/null; exit 1
+      fi
+      sleep 0.1
+    done
+    watch_rss "$pid" "$TMP/rss" &
+    watcher=$!
+    "$LOAD" --clients "$CLIENTS" --steps "$STEPS" --densify "$DENSIFY" --target "127.0.0.1:$PORT" --json \
+      > "$TMP/load.json" || true
+    kill -TERM "$pid"
+    wait "$pid" || true
+    wait "$watcher"
+    /usr/bin/python3 -c '
+import json, sys
+out = {"label": sys.argv[1], "round": int(sys.argv[2]), "load_average": float(open("/proc/loadavg").read().split()[0])}
+out.update(json.load(open(sys.argv[3])))
+out["server_peak_rss_mb"] = int(open(sys.argv[4]).read()) / 1000
+print(json.dumps(out))' "$label" "$round" "$TMP/load.json" "$TMP/rss"
+  done
+  round=$((round + 1))
+done
