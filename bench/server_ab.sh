@@ -85,7 +85,24 @@ import json, sys
 out = {"label": sys.argv[1], "round": int(sys.argv[2]), "load_average": float(open("/proc/loadavg").read().split()[0])}
 out.update(json.load(open(sys.argv[3])))
 out["server_peak_rss_mb"] = int(open(sys.argv[4]).read()) / 1000
-print(json.dumps(out))' "$label" "$round" "$TMP/load.json" "$TMP/rss"
+print(json.dumps(out))' "$label" "$round" "$TMP/load.json" "$TMP/rss" | tee -a "$TMP/runs.jsonl"
   done
   round=$((round + 1))
 done
+
+# The summary, on stderr: each label's median steps/s and its ratio to the first label's, errors summed.
+/usr/bin/python3 - "$TMP/runs.jsonl" >&2 <<'PY'
+import json, statistics, sys
+runs = [json.loads(line) for line in open(sys.argv[1])]
+labels = list(dict.fromkeys(r["label"] for r in runs))
+med = {l: statistics.median(r["steps_per_second"] for r in runs if r["label"] == l) for l in labels}
+for l in labels:
+    mine = [r for r in runs if r["label"] == l]
+    rates = ", ".join("%.1f" % r["steps_per_second"] for r in mine)
+    p50 = statistics.median(r["latency_ms_p50"] for r in mine)
+    p99 = statistics.median(r["latency_ms_p99"] for r in mine)
+    rss = [r["server_peak_rss_mb"] for r in mine]
+    print(f"{l}: steps/s {rates}; median {med[l]:.1f} ({med[l] / med[labels[0]]:.2f}x {labels[0]}); "
+          f"p50 {p50:.0f} ms, p99 {p99:.0f} ms; errors {sum(r['errors'] for r in mine)}; "
+          f"peak RSS {min(rss):.0f}-{max(rss):.0f} MB")
+PY
