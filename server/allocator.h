@@ -2,13 +2,14 @@
 // the server's resident memory (issues 13 and 16; README, Faults and Speed).
 //
 // Why jemalloc: the server's ticks allocate and free many short-lived buffers on gRPC's handler threads, and glibc's
-// malloc was 11 % of the server's profile. With jemalloc preloaded the same binary served 1.22x the steps/s (README,
-// Speed). Why not glibc's arenas as before: each thread that allocates gets one of up to 8 x cores glibc arenas, a
+// malloc was 11 % of the server's profile on an AVX2 machine, where the same binary with jemalloc preloaded served
+// 1.22x the steps/s (README, Speed; jemalloc is below 1 % of the profile). Why not glibc's arenas as before: each thread that allocates gets one of up to 8 x cores glibc arenas, a
 // freed block goes back to its arena, which keeps the pages, so RSS stepped up from round to round of identical load
 // while the bytes in use did not (tests/integration/memory_rounds.py: 301 -> 471 MB over 8 rounds); the server then
 // capped the arenas and called malloc_trim(0). jemalloc gives unused dirty pages back to the kernel on its own after
 // dirty_decay_ms (10 s by default) and on demand (arena purge), which is what allocator_trim does from the reaper
-// after sessions close (--malloc_trim_s). jemalloc's own settings come from MALLOC_CONF (e.g. narenas:4).
+// after sessions close (--malloc_trim_s): faults_test's rounds end at 42-43 MB each. jemalloc's own settings come
+// from MALLOC_CONF (e.g. narenas:4); longer decays or a larger thread cache measured inside the noise.
 #pragma once
 
 #include <cstdint>

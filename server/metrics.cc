@@ -40,9 +40,9 @@ class Metrics::Gauges : public prometheus::Collectable {
             family("scenestreamer_cache_bytes", "Bytes held by sessions (KV caches and state).",
                    m_.cache_bytes ? static_cast<double>(m_.cache_bytes()) : 0),
             family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0),
-            // What RSS is made of (server/allocator.h): bytes in use vs bytes malloc holds free.
-            family("scenestreamer_malloc_in_use_bytes", "Bytes allocated with malloc and not freed (jemalloc stats.allocated).",
-                   static_cast<double>(a.in_use)),
+            // What RSS is made of (server/allocator.h): bytes in use vs bytes the allocator holds beyond them.
+            family("scenestreamer_malloc_in_use_bytes",
+                   "Bytes allocated with malloc and not freed (jemalloc stats.allocated).", static_cast<double>(a.in_use)),
             family("scenestreamer_malloc_free_bytes",
                    "Bytes resident in the allocator beyond those in use: unused pages not yet given back, metadata "
                    "(jemalloc stats.resident - stats.allocated).",

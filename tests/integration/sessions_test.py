@@ -60,7 +60,7 @@ class SlotsTest(unittest.TestCase):
             short_id = srv.stub.CreateSession(pb.CreateSessionRequest(scenario_name=name, seed=2)).session_id
             srv.stub.StepScene(pb.StepSceneRequest(session_id=short_id))  # warm
             # A tick's time: the fastest of three, so a pause from other tests on the machine does not shrink the long
-            # call below (once a 0.3 s outlier made it 40 ticks of 10 ms, over before the short call started).
+            # call's tick count.
             one = float("inf")
             for _ in range(3):
                 t = time.time()
