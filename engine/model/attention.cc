@@ -32,6 +32,8 @@ Mat relation_embedding(const Mat& features, const RelationParams& p) {
   return h;
 }
 
+Mat relation_columns(const Mat& features, const RelationParams& p) { return relation_embedding(features, p).transpose(); }
+
 Mat relation_by_step(const RelationParams& p, int steps) {
   Mat f = Mat::Zero(steps, kRelationFeatures);
   for (int dt = 0; dt < steps; ++dt) f(dt, 5) = static_cast<float>(dt) / 5.0f;  // as relation_features() writes it
@@ -180,7 +182,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       t.s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();
       t.ug = u(rows, Eigen::seqN(h * r, r));  // g x r
       if (!set->uniform) {
-        t.s.leftCols(mp).noalias() += t.ug * set->relation.transpose();
+        t.s.leftCols(mp).noalias() += t.ug * set->relation;
         if (mp < m) t.table.add_scores(*set, t.ug.data(), g, r, t.s.data(), m);
       }
       kernel_softmax_rows(t.s.data(), g, m, m, scale);
@@ -189,7 +191,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       if (set->uniform) {
         t.rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one
       } else {
-        t.rg.noalias() = t.s.leftCols(mp) * set->relation;  // g x r
+        t.rg.noalias() = t.s.leftCols(mp) * set->relation.transpose();  // g x r
         if (mp < m) t.table.add_weighted(*set, t.s.data(), g, r, m, t.rg.data());
       }
       for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c);

@@ -47,12 +47,14 @@ RelationFeatures relation_features(const Anchor& q, const Anchor& k);
 
 // h = relu(fc2(relu(fc1(f)))) for a batch of feature rows (m x 7 -> m x relation_dim).
 Mat relation_embedding(const Mat& features, const RelationParams& p);
+// The same, key-major as QueryKeys::relation holds it (relation_dim x m): the rows above, transposed.
+Mat relation_columns(const Mat& features, const RelationParams& p);
 // h for a pair of which at least one side has no position: it depends only on the step difference dt. Row dt
 // (0 <= dt < steps) of the result (steps x relation_dim) is h of f = (0, 0, 0, 0, 0, dt / 5, 0).
 Mat relation_by_step(const RelationParams& p, int steps);
 
 // The keys one query reads: rows of the key/value matrices and their relation embeddings. Keys whose pair has
-// positions on both sides come first, each with its own row of `relation`; the others (a side without a position)
+// positions on both sides come first, each with its own column of `relation`; the others (a side without a position)
 // share the rows of a small table (their h depends only on the step difference), so they cost no memory of their
 // own. Each part is in sequence order (for a KV cache, the rows are ring rows, so not always ascending).
 struct QueryKeys {
@@ -60,14 +62,15 @@ struct QueryKeys {
     int row = 0, count = 0;  // `count` consecutive keys that share row `row` of the table
   };
   std::vector<int> keys;
-  Mat relation;                      // posed() x relation_dim: h of keys[j] for j < posed()
+  Mat relation;                      // relation_dim x posed(), key-major: column j is h of keys[j] (the kernels run
+                                     // a vector of keys at a time)
   const Mat* table = nullptr;        // rows of h shared by the remaining keys (relation_by_step), when there are any
   std::vector<TableRun> table_runs;  // keys[posed()..] in runs by table row (keys in sequence order share their
                                      // step difference, so the runs are few and long)
   bool uniform = false;              // no posed keys and one table row for all: the relation term is then one
                                      // constant per query and head, which the softmax cancels, and is skipped
 
-  int posed() const { return static_cast<int>(relation.rows()); }
+  int posed() const { return static_cast<int>(relation.cols()); }
   // Appends the table row of the next key after the posed ones.
   void add_table_row(int row) {
     if (!table_runs.empty() && table_runs.back().row == row) ++table_runs.back().count;

@@ -32,11 +32,11 @@ void kernel_key_scores_plain(const AttentionShape& s, const float* q, const floa
   }
 }
 
-void kernel_relation_scores_plain(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+void kernel_relation_scores_plain(const AttentionShape& s, const float* u, const float* rel_t, int m, float* scores,
                                   int stride) {
   for (int h = 0; h < s.heads; ++h)
     for (int c = 0; c < s.r; ++c)
-      for (int j = 0; j < m; ++j) scores[h * stride + j] += u[h * s.r + c] * rel[j * s.r + c];
+      for (int j = 0; j < m; ++j) scores[h * stride + j] += u[h * s.r + c] * rel_t[c * m + j];
 }
 
 void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
@@ -48,12 +48,12 @@ void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const
   }
 }
 
-void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                                     float* out) {
   for (int h = 0; h < s.heads; ++h)
     for (int c = 0; c < s.r; ++c) {
       float sum = 0;
-      for (int j = 0; j < m; ++j) sum += a[h * stride + j] * rel[j * s.r + c];
+      for (int j = 0; j < m; ++j) sum += a[h * stride + j] * rel_t[c * m + j];
       out[h * s.r + c] = sum;
     }
 }
@@ -267,21 +267,57 @@ inline __m512 load16(const uint16_t* p) {
   return _mm512_cvtph_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)));
 }
 
-// HV = dh / 16 vectors per head (1 or 2); heads in groups of four. T: float, or uint16_t for half floats.
+// Lane i of the result is the sum of the sixteen lanes of v[i]: three rounds of pairwise shuffles and adds.
+inline __m512 sum16(const __m512* v) {
+  __m512 u[4];
+  for (int i = 0; i < 4; ++i) {
+    const __m512* w = v + 4 * i;
+    // Within each 128-bit quarter: [w0 w1 w0 w1] partial sums, then [w0 w1 w2 w3].
+    const __m512 a = _mm512_add_ps(_mm512_unpacklo_ps(w[0], w[1]), _mm512_unpackhi_ps(w[0], w[1]));
+    const __m512 b = _mm512_add_ps(_mm512_unpacklo_ps(w[2], w[3]), _mm512_unpackhi_ps(w[2], w[3]));
+    u[i] = _mm512_add_ps(_mm512_shuffle_ps(a, b, 0x44), _mm512_shuffle_ps(a, b, 0xEE));
+  }
+  // Across the quarters: quarter i of the result adds the four quarters of u[i].
+  const __m512 u01 = _mm512_add_ps(_mm512_shuffle_f32x4(u[0], u[1], 0x44), _mm512_shuffle_f32x4(u[0], u[1], 0xEE));
+  const __m512 u23 = _mm512_add_ps(_mm512_shuffle_f32x4(u[2], u[3], 0x44), _mm512_shuffle_f32x4(u[2], u[3], 0xEE));
+  return _mm512_add_ps(_mm512_shuffle_f32x4(u01, u23, 0x88), _mm512_shuffle_f32x4(u01, u23, 0xDD));
+}
+
+// HV = dh / 16 vectors per head (1 or 2); heads in groups of four. T: float, or uint16_t for half floats. Four keys
+// at a time: their sixteen (key, head) sums reduce in one vector, whose quarter g holds head g's four scores.
 template <int HV, typename T>
 void key_scores(const AttentionShape& s, const float* q, const T* k, const int* keys, int m, float* scores) {
   const int d = s.d();
-  for (int j = 0; j < m; ++j) {
-    const T* kr = k + static_cast<size_t>(keys[j]) * d;
-    for (int h = 0; h < s.heads; h += 4) {
+  for (int h = 0; h < s.heads; h += 4) {
+    __m512 qv[4 * HV];
+    for (int g = 0; g < 4; ++g)
+      for (int i = 0; i < HV; ++i) qv[g * HV + i] = _mm512_loadu_ps(q + (h + g) * s.dh + 16 * i);
+    float* out = scores + static_cast<size_t>(h) * m;
+    int j = 0;
+    for (; j + 4 <= m; j += 4) {
+      __m512 acc[16];  // acc[4 * g + key]
+      for (int e = 0; e < 4; ++e) {
+        const T* kr = k + static_cast<size_t>(keys[j + e]) * d + h * s.dh;
+        for (int g = 0; g < 4; ++g) {
+          acc[4 * g + e] = _mm512_mul_ps(qv[g * HV], load16(kr + g * s.dh));
+          if constexpr (HV == 2)
+            acc[4 * g + e] = _mm512_fmadd_ps(qv[g * HV + 1], load16(kr + g * s.dh + 16), acc[4 * g + e]);
+        }
+      }
+      const __m512 z = sum16(acc);
+      _mm_storeu_ps(out + j, _mm512_extractf32x4_ps(z, 0));
+      _mm_storeu_ps(out + m + j, _mm512_extractf32x4_ps(z, 1));
+      _mm_storeu_ps(out + 2 * m + j, _mm512_extractf32x4_ps(z, 2));
+      _mm_storeu_ps(out + 3 * m + j, _mm512_extractf32x4_ps(z, 3));
+    }
+    for (; j < m; ++j) {
+      const T* kr = k + static_cast<size_t>(keys[j]) * d + h * s.dh;
       __m512 acc[4];
       for (int g = 0; g < 4; ++g) {
-        const int base = (h + g) * s.dh;
-        acc[g] = _mm512_mul_ps(_mm512_loadu_ps(q + base), load16(kr + base));
-        if constexpr (HV == 2) acc[g] = _mm512_fmadd_ps(_mm512_loadu_ps(q + base + 16), load16(kr + base + 16), acc[g]);
+        acc[g] = _mm512_mul_ps(qv[g * HV], load16(kr + g * s.dh));
+        if constexpr (HV == 2) acc[g] = _mm512_fmadd_ps(qv[g * HV + 1], load16(kr + g * s.dh + 16), acc[g]);
       }
-      store4(sum4(acc[0], acc[1], acc[2], acc[3]), scores + h * m + j, scores + (h + 1) * m + j,
-             scores + (h + 2) * m + j, scores + (h + 3) * m + j);
+      store4(sum4(acc[0], acc[1], acc[2], acc[3]), out + j, out + m + j, out + 2 * m + j, out + 3 * m + j);
     }
   }
 }
@@ -336,40 +372,73 @@ void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const u
   weighted_values<1>(s, a, v, keys, m, out);
 }
 
-void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+// Keys run sixteen to a vector: relation scores add u[h][c] rel_t[c][j..j+16) over c (the plain form's order), two
+// blocks of keys at once for eight independent sums; the last block is masked.
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel_t, int m, float* scores,
                             int stride) {
-  if (s.heads % 4 != 0 || s.r != 32) return kernel_relation_scores_plain(s, u, rel, m, scores, stride);
+  if (s.heads % 4 != 0 || kernels_forced_plain()) return kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
+  const int r = s.r;
   for (int h = 0; h < s.heads; h += 4) {
-    __m512 uh[8];
-    for (int g = 0; g < 4; ++g)
-      for (int i = 0; i < 2; ++i) uh[g * 2 + i] = _mm512_loadu_ps(u + (h + g) * s.r + 16 * i);
-    for (int j = 0; j < m; ++j) {
-      const __m512 r0 = _mm512_loadu_ps(rel + j * s.r), r1 = _mm512_loadu_ps(rel + j * s.r + 16);
+    float* sh = scores + static_cast<size_t>(h) * stride;
+    const float* uh = u + h * r;
+    int j = 0;
+    for (; j + 32 <= m; j += 32) {
+      __m512 acc[8];
+      for (int g = 0; g < 4; ++g) {
+        acc[2 * g] = _mm512_loadu_ps(sh + g * stride + j);
+        acc[2 * g + 1] = _mm512_loadu_ps(sh + g * stride + j + 16);
+      }
+      for (int c = 0; c < r; ++c) {
+        const __m512 x0 = _mm512_loadu_ps(rel_t + c * m + j), x1 = _mm512_loadu_ps(rel_t + c * m + j + 16);
+        for (int g = 0; g < 4; ++g) {
+          const __m512 w = _mm512_set1_ps(uh[g * r + c]);
+          acc[2 * g] = _mm512_fmadd_ps(w, x0, acc[2 * g]);
+          acc[2 * g + 1] = _mm512_fmadd_ps(w, x1, acc[2 * g + 1]);
+        }
+      }
+      for (int g = 0; g < 4; ++g) {
+        _mm512_storeu_ps(sh + g * stride + j, acc[2 * g]);
+        _mm512_storeu_ps(sh + g * stride + j + 16, acc[2 * g + 1]);
+      }
+    }
+    for (; j < m; j += 16) {
+      const __mmask16 lanes = m - j >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << (m - j)) - 1);
       __m512 acc[4];
-      for (int g = 0; g < 4; ++g) acc[g] = _mm512_fmadd_ps(uh[g * 2 + 1], r1, _mm512_mul_ps(uh[g * 2], r0));
-      alignas(64) float lanes[16];
-      _mm512_store_ps(lanes, sum4(acc[0], acc[1], acc[2], acc[3]));
-      for (int g = 0; g < 4; ++g) scores[(h + g) * stride + j] += lanes[4 * g];
+      for (int g = 0; g < 4; ++g) acc[g] = _mm512_maskz_loadu_ps(lanes, sh + g * stride + j);
+      for (int c = 0; c < r; ++c) {
+        const __m512 x = _mm512_maskz_loadu_ps(lanes, rel_t + c * m + j);
+        for (int g = 0; g < 4; ++g) acc[g] = _mm512_fmadd_ps(_mm512_set1_ps(uh[g * r + c]), x, acc[g]);
+      }
+      for (int g = 0; g < 4; ++g) _mm512_mask_storeu_ps(sh + g * stride + j, lanes, acc[g]);
     }
   }
 }
 
-void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+// Four heads by four relation features at a time: sixteen sums over the keys, sixteen to a vector (the last block
+// masked), reduced once at the end.
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                               float* out) {
-  if (s.heads % 4 != 0 || s.r != 32) return kernel_weighted_relation_plain(s, a, rel, m, stride, out);
+  if (s.heads % 4 != 0 || s.r % 4 != 0 || kernels_forced_plain())
+    return kernel_weighted_relation_plain(s, a, rel_t, m, stride, out);
+  const int r = s.r;
   for (int h = 0; h < s.heads; h += 4) {
-    __m512 acc[8];
-    for (int i = 0; i < 8; ++i) acc[i] = _mm512_setzero_ps();
-    for (int j = 0; j < m; ++j) {
-      const __m512 r0 = _mm512_loadu_ps(rel + j * s.r), r1 = _mm512_loadu_ps(rel + j * s.r + 16);
+    const float* ah = a + static_cast<size_t>(h) * stride;
+    for (int c = 0; c < r; c += 4) {
+      __m512 acc[16];
+      for (int i = 0; i < 16; ++i) acc[i] = _mm512_setzero_ps();
+      for (int j = 0; j < m; j += 16) {
+        const __mmask16 lanes = m - j >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << (m - j)) - 1);
+        __m512 w[4], x[4];
+        for (int g = 0; g < 4; ++g) w[g] = _mm512_maskz_loadu_ps(lanes, ah + g * stride + j);
+        for (int e = 0; e < 4; ++e) x[e] = _mm512_maskz_loadu_ps(lanes, rel_t + (c + e) * m + j);
+        for (int g = 0; g < 4; ++g)
+          for (int e = 0; e < 4; ++e) acc[4 * g + e] = _mm512_fmadd_ps(w[g], x[e], acc[4 * g + e]);
+      }
       for (int g = 0; g < 4; ++g) {
-        const __m512 w = _mm512_set1_ps(a[(h + g) * stride + j]);
-        acc[g * 2] = _mm512_fmadd_ps(w, r0, acc[g * 2]);
-        acc[g * 2 + 1] = _mm512_fmadd_ps(w, r1, acc[g * 2 + 1]);
+        float* o = out + (h + g) * r + c;
+        store4(sum4(acc[4 * g], acc[4 * g + 1], acc[4 * g + 2], acc[4 * g + 3]), o, o + 1, o + 2, o + 3);
       }
     }
-    for (int g = 0; g < 4; ++g)
-      for (int i = 0; i < 2; ++i) _mm512_storeu_ps(out + (h + g) * s.r + 16 * i, acc[g * 2 + i]);
   }
 }
 
@@ -473,46 +542,68 @@ void kernel_weighted_values(const AttentionShape& s, const float* a, const float
   weighted_values<16>(s, a, v, keys, m, out);
 }
 
-void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+// Keys run eight to a vector (as the AVX-512 forms, half the width); keys past the last whole vector take the
+// plain loop.
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel_t, int m, float* scores,
                             int stride) {
-  if (s.heads % 4 != 0 || s.r != 32 || kernels_forced_plain())
-    return kernel_relation_scores_plain(s, u, rel, m, scores, stride);
-  for (int j = 0; j < m; ++j) {
-    const float* rj = rel + j * 32;
-    const __m256 r0 = _mm256_loadu_ps(rj), r1 = _mm256_loadu_ps(rj + 8), r2 = _mm256_loadu_ps(rj + 16),
-                 r3 = _mm256_loadu_ps(rj + 24);
-    for (int h = 0; h < s.heads; h += 4) {
-      __m256 acc[4];
+  if (s.heads % 4 != 0 || kernels_forced_plain()) return kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
+  const int r = s.r;
+  for (int h = 0; h < s.heads; h += 4) {
+    float* sh = scores + static_cast<size_t>(h) * stride;
+    const float* uh = u + h * r;
+    int j = 0;
+    for (; j + 16 <= m; j += 16) {
+      __m256 acc[8];
       for (int g = 0; g < 4; ++g) {
-        const float* uh = u + (h + g) * 32;
-        acc[g] = _mm256_mul_ps(_mm256_loadu_ps(uh), r0);
-        acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(uh + 8), r1, acc[g]);
-        acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(uh + 16), r2, acc[g]);
-        acc[g] = _mm256_fmadd_ps(_mm256_loadu_ps(uh + 24), r3, acc[g]);
+        acc[2 * g] = _mm256_loadu_ps(sh + g * stride + j);
+        acc[2 * g + 1] = _mm256_loadu_ps(sh + g * stride + j + 8);
       }
-      alignas(16) float lanes[4];
-      _mm_store_ps(lanes, sum4(acc[0], acc[1], acc[2], acc[3]));
-      for (int g = 0; g < 4; ++g) scores[(h + g) * stride + j] += lanes[g];
+      for (int c = 0; c < r; ++c) {
+        const __m256 x0 = _mm256_loadu_ps(rel_t + c * m + j), x1 = _mm256_loadu_ps(rel_t + c * m + j + 8);
+        for (int g = 0; g < 4; ++g) {
+          const __m256 w = _mm256_broadcast_ss(uh + g * r + c);
+          acc[2 * g] = _mm256_fmadd_ps(w, x0, acc[2 * g]);
+          acc[2 * g + 1] = _mm256_fmadd_ps(w, x1, acc[2 * g + 1]);
+        }
+      }
+      for (int g = 0; g < 4; ++g) {
+        _mm256_storeu_ps(sh + g * stride + j, acc[2 * g]);
+        _mm256_storeu_ps(sh + g * stride + j + 8, acc[2 * g + 1]);
+      }
     }
+    for (int g = 0; g < 4; ++g)
+      for (int c = 0; c < r; ++c)
+        for (int jj = j; jj < m; ++jj) sh[g * stride + jj] += uh[g * r + c] * rel_t[c * m + jj];
   }
 }
 
-void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                               float* out) {
-  if (s.heads % 4 != 0 || s.r != 32 || kernels_forced_plain())
-    return kernel_weighted_relation_plain(s, a, rel, m, stride, out);
-  for (int h = 0; h < s.heads; h += 2) {
-    __m256 acc[8];
-    for (int i = 0; i < 8; ++i) acc[i] = _mm256_setzero_ps();
-    for (int j = 0; j < m; ++j) {
-      const float* rj = rel + j * 32;
-      for (int g = 0; g < 2; ++g) {
-        const __m256 w = _mm256_broadcast_ss(a + (h + g) * stride + j);
-        for (int i = 0; i < 4; ++i) acc[g * 4 + i] = _mm256_fmadd_ps(w, _mm256_loadu_ps(rj + 8 * i), acc[g * 4 + i]);
+  if (s.heads % 4 != 0 || s.r % 4 != 0 || kernels_forced_plain())
+    return kernel_weighted_relation_plain(s, a, rel_t, m, stride, out);
+  const int r = s.r;
+  const int whole = m - m % 8;
+  for (int h = 0; h < s.heads; h += 4) {
+    const float* ah = a + static_cast<size_t>(h) * stride;
+    for (int c = 0; c < r; c += 4) {
+      __m256 acc[16];
+      for (int i = 0; i < 16; ++i) acc[i] = _mm256_setzero_ps();
+      for (int j = 0; j < whole; j += 8) {
+        __m256 w[4], x[4];
+        for (int g = 0; g < 4; ++g) w[g] = _mm256_loadu_ps(ah + g * stride + j);
+        for (int e = 0; e < 4; ++e) x[e] = _mm256_loadu_ps(rel_t + (c + e) * m + j);
+        for (int g = 0; g < 4; ++g)
+          for (int e = 0; e < 4; ++e) acc[4 * g + e] = _mm256_fmadd_ps(w[g], x[e], acc[4 * g + e]);
+      }
+      for (int g = 0; g < 4; ++g) {
+        alignas(16) float sums[4];
+        _mm_store_ps(sums, sum4(acc[4 * g], acc[4 * g + 1], acc[4 * g + 2], acc[4 * g + 3]));
+        for (int e = 0; e < 4; ++e) {
+          for (int j = whole; j < m; ++j) sums[e] += ah[g * stride + j] * rel_t[(c + e) * m + j];
+          out[(h + g) * r + c + e] = sums[e];
+        }
       }
     }
-    for (int g = 0; g < 2; ++g)
-      for (int i = 0; i < 4; ++i) _mm256_storeu_ps(out + (h + g) * 32 + 8 * i, acc[g * 4 + i]);
   }
 }
 
@@ -576,17 +667,17 @@ void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, 
                        float* scores) {
   kernel_key_scores_plain(s, q, k, keys, m, scores);
 }
-void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel, int m, float* scores,
+void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel_t, int m, float* scores,
                             int stride) {
-  kernel_relation_scores_plain(s, u, rel, m, scores, stride);
+  kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
 }
 void kernel_weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
                             float* out) {
   kernel_weighted_values_plain(s, a, v, keys, m, out);
 }
-void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel, int m, int stride,
+void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                               float* out) {
-  kernel_weighted_relation_plain(s, a, rel, m, stride, out);
+  kernel_weighted_relation_plain(s, a, rel_t, m, stride, out);
 }
 void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
   kernel_softmax_rows_plain(s, rows, cols, stride, scale);

@@ -124,7 +124,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
       const RelationFeatures rf = relation_features(fresh[i], anchor(set->keys[e]));
       for (int col = 0; col < kRelationFeatures; ++col) f(e, col) = rf[col];
     }
-    set->relation = relation_embedding(f, self_relation_);
+    set->relation = relation_columns(f, self_relation_);
     set->keys.insert(set->keys.end(), k.unposed.begin(), k.unposed.end());
     for (int& j : set->keys) j = cache.row(j);  // the attention reads keys and values at their ring rows
     set->table = &self_relation_by_step_;
@@ -168,7 +168,7 @@ Model::KeySets Model::cross_keys(const MapContext& map, KvCache& cache, std::spa
         const RelationFeatures rf = relation_features(qa, map.anchors[set->keys[j]]);
         for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
       }
-      set->relation = relation_embedding(f, cross_relation_);
+      set->relation = relation_columns(f, cross_relation_);
       entry.keys = set;
       out.sets.push_back(std::move(set));
     }

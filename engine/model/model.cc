@@ -192,7 +192,7 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
       const RelationFeatures rf = relation_features(Anchor(true, p, 0), Anchor(true, map->segments[keys[i].keys[j]].pose, 0));
       for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
     }
-    keys[i].relation = relation_embedding(f, encoder_relation_);
+    keys[i].relation = relation_columns(f, encoder_relation_);
   }
   for (const EncoderLayerParams& L : encoder_layers_) {
     const Mat xn = layer_norm(x, L.attn_norm);

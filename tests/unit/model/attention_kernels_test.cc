@@ -50,7 +50,8 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
   kernel_key_scores_plain(s, q.data(), k.data(), keys.data(), m, plain.data());
   expect_near(fast, plain, "key scores");
 
-  // The relation kernels on the first m - m / 3 keys of rows m apart (a query's keys with relation rows come first).
+  // The relation kernels on the first m - m / 3 keys (a query's keys with relation columns come first: r x mp,
+  // key-major), score rows m apart.
   const int mp = m - m / 3;
   kernel_relation_scores(s, u.data(), rel.data(), mp, fast.data(), m);
   kernel_relation_scores_plain(s, u.data(), rel.data(), mp, plain.data(), m);
@@ -139,7 +140,8 @@ TEST(HalfFloats, ConversionRoundsToNearestAndSaturates) {
 INSTANTIATE_TEST_SUITE_P(Shapes, KernelTest,
                          ::testing::Values(Case{{4, 32, 32}, 1}, Case{{4, 32, 32}, 15}, Case{{4, 32, 32}, 16},
                                            Case{{4, 32, 32}, 17}, Case{{4, 32, 32}, 250}, Case{{4, 16, 32}, 33},
-                                           Case{{8, 16, 32}, 40}, Case{{2, 24, 8}, 20}, Case{{4, 32, 32}, 0}));
+                                           Case{{8, 16, 32}, 40}, Case{{4, 32, 16}, 70}, Case{{2, 24, 8}, 20},
+                                           Case{{4, 32, 32}, 0}));
 
 }  // namespace
 }  // namespace ss
