@@ -2,6 +2,7 @@
 // decoder uses it for its sessions and the trainer for its teacher-forced sequences, so both read the same keys.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <span>
 #include <unordered_map>
@@ -43,6 +44,7 @@ class SelfKeySelector {
   std::map<int, Step> steps_;
   std::unordered_map<int64_t, std::vector<int>> objects_;
   std::vector<int> seen_;  // the query that last took each key: candidates without a sort
+  std::vector<uint64_t> posed_bits_, unposed_bits_;  // one query's kept keys by index (emitted in order, cleared)
   std::vector<int> candidates_, spatial_;
   std::vector<double> dist_;
   std::vector<int64_t> order_;

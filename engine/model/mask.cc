@@ -48,10 +48,9 @@ std::vector<int> nearest_within(std::span<const double> distances, std::span<con
   } else {
     const int wanted = std::min(limit.always, k) - static_cast<int>(inside.size());
     const int extra = std::min(wanted, static_cast<int>(outside.size()));
-    if (extra > 0) {
-      std::nth_element(outside.begin(), outside.begin() + (extra - 1), outside.end(), closer);
-      inside.insert(inside.end(), outside.begin(), outside.begin() + extra);
-    }
+    if (extra <= 0) return inside;  // built in ascending order, nothing selected: already sorted
+    std::nth_element(outside.begin(), outside.begin() + (extra - 1), outside.end(), closer);
+    inside.insert(inside.end(), outside.begin(), outside.begin() + extra);
   }
   std::sort(inside.begin(), inside.end());
   return inside;
