@@ -32,7 +32,9 @@ Mat relation_embedding(const Mat& features, const RelationParams& p) {
   return h;
 }
 
-Mat relation_columns(const Mat& features, const RelationParams& p) { return relation_embedding(features, p).transpose(); }
+Mat relation_columns(const Mat& features, const RelationParams& p) {
+  return relation_embedding(features, p).transpose();
+}
 
 Mat relation_by_step(const RelationParams& p, int steps) {
   Mat f = Mat::Zero(steps, kRelationFeatures);

@@ -17,7 +17,7 @@ namespace ss {
 
 // One query's self-attention keys, as indices into the cached tokens followed by the fresh ones, each part ascending.
 struct SelfKeys {
-  std::vector<int> posed;    // a position on both sides: these get their own relation rows
+  std::vector<int> posed;    // a position on both sides: these get their own relation columns
   std::vector<int> unposed;  // a side without a position: the relation depends on the step difference only
 };
 

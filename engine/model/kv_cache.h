@@ -19,12 +19,12 @@ struct DecodeWork {
   int64_t tokens = 0;               // new tokens decoded
   int64_t query_layers = 0;         // (token, layer) pairs that ran a self-attention query and feed-forward
   int64_t key_reads = 0;            // (query, key, layer) triples, self- and cross-attention
-  int64_t posed_key_reads = 0;      // those whose relation came from the query's own relation rows
+  int64_t posed_key_reads = 0;      // those whose relation came from the query's own relation columns
   int64_t relation_rows = 0;        // relation MLP evaluations (once per decode call, shared by the layers)
   int64_t kept_cross_queries = 0;   // first-layer cross-attention queries taken from kept rows (KvCache::poseless)
 };
 
-// The map keys a query at one pose reads in cross-attention, with their relation rows: a function of the pose and
+// The map keys a query at one pose reads in cross-attention, with their relation columns: a function of the pose and
 // the map alone, so a session keeps those of its recent poses. Lights and agents' anchor segments keep their pose
 // from step to step, and an agent's motion token has its relative-state token's pose.
 struct CrossKeyEntry {
