@@ -261,6 +261,9 @@ inline void store4(__m512 z, float* p0, float* p1, float* p2, float* p3) {
   *p3 = lanes[12];
 }
 
+// The low min(n, 16) lanes: a last, partial block of keys.
+inline __mmask16 first_lanes(int n) { return n >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << n) - 1); }
+
 // Sixteen key or value elements as floats: loaded, or converted from half floats.
 inline __m512 load16(const float* p) { return _mm512_loadu_ps(p); }
 inline __m512 load16(const uint16_t* p) {
@@ -402,7 +405,7 @@ void kernel_relation_scores(const AttentionShape& s, const float* u, const float
       }
     }
     for (; j < m; j += 16) {
-      const __mmask16 lanes = m - j >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << (m - j)) - 1);
+      const __mmask16 lanes = first_lanes(m - j);
       __m512 acc[4];
       for (int g = 0; g < 4; ++g) acc[g] = _mm512_maskz_loadu_ps(lanes, sh + g * stride + j);
       for (int c = 0; c < r; ++c) {
@@ -427,7 +430,7 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
       __m512 acc[16];
       for (int i = 0; i < 16; ++i) acc[i] = _mm512_setzero_ps();
       for (int j = 0; j < m; j += 16) {
-        const __mmask16 lanes = m - j >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << (m - j)) - 1);
+        const __mmask16 lanes = first_lanes(m - j);
         __m512 w[4], x[4];
         for (int g = 0; g < 4; ++g) w[g] = _mm512_maskz_loadu_ps(lanes, ah + g * stride + j);
         for (int e = 0; e < 4; ++e) x[e] = _mm512_maskz_loadu_ps(lanes, rel_t + (c + e) * m + j);
