@@ -51,8 +51,9 @@ absl::StatusOr<BenchWorld> make_bench_world(const std::string& scenario_path, co
 }
 
 absl::StatusOr<std::unique_ptr<Session>> bench_session(const BenchWorld& w, int agents, uint64_t seed,
-                                                       Session::Probe* probe) {
+                                                       Session::Probe* probe, bool motion_reject) {
   SessionOptions o;
+  o.motion_reject = motion_reject;
   o.mode = SessionMode::densify;
   o.seed = seed;
   o.max_agents = agents;

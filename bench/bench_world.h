@@ -28,7 +28,7 @@ absl::StatusOr<BenchWorld> make_bench_world(const std::string& scenario_path, co
 // A densify session with exactly `agents` agents at creation; its region covers the whole map, so nobody leaves and
 // the count stays at `agents` (new agents fill any gap up to the cap).
 absl::StatusOr<std::unique_ptr<Session>> bench_session(const BenchWorld& w, int agents, uint64_t seed,
-                                                       Session::Probe* probe = nullptr);
+                                                       Session::Probe* probe = nullptr, bool motion_reject = true);
 
 // The decoder batches of a 64-agent (or `agents`) rollout up to `step`, split into those before the step and those of
 // the step: the incremental path decodes only the latter over a cache of the former; a full recompute decodes all.

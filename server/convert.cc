@@ -59,6 +59,7 @@ absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest
     if (auto st = finite(r.sampling().temperature(), "sampling.temperature"); !st.ok()) return st;
     if (r.sampling().top_p() != 0) o.top_p = r.sampling().top_p();
     if (r.sampling().temperature() != 0) o.temperature = r.sampling().temperature();
+    o.motion_reject = !r.sampling().no_motion_reject();
   }
   for (int64_t id : r.controlled_agent_ids()) {
     if (id < INT32_MIN || id > INT32_MAX)

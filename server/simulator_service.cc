@@ -19,6 +19,7 @@ void info_to_proto(const SessionInfo& i, pb::SessionInfo* o) {
   o->set_seed(i.options.seed);
   o->mutable_sampling()->set_top_p(i.options.top_p);
   o->mutable_sampling()->set_temperature(i.options.temperature);
+  o->mutable_sampling()->set_no_motion_reject(!i.options.motion_reject);
   for (int64_t id : i.controlled) o->add_controlled_agent_ids(id);
   o->set_tick_hz(i.tick_hz);
   o->set_tick(i.tick);

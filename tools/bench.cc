@@ -61,11 +61,11 @@ int fail(const absl::Status& st) {
 int bench_main(int argc, char** argv) {
   const Command command{"scenestreamer bench",
                         "usage: scenestreamer bench [--json] [--model large|small|WEIGHTS] [--scenario FILE] [--steps N]\n"
-                        "                           [--long-steps N] [--kv-precision fp32|fp16]\n"
+                        "                           [--long-steps N] [--kv-precision fp32|fp16] [--motion-reject=false]\n"
                         "  Step latency by agent count, the incremental decoder against a full recompute at step 19,\n"
                         "  session memory after a long rollout, KV bytes per token; one thread.\n",
                         __FILE__,
-                        {flag(FLAGS_json)}};
+                        {flag(FLAGS_json), flag(FLAGS_motion_reject)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   const int steps = absl::GetFlag(FLAGS_bench_steps), long_steps = absl::GetFlag(FLAGS_long_steps);
@@ -98,7 +98,7 @@ int bench_main(int argc, char** argv) {
     double gflop = 0;  // per step
   };
   auto time_steps = [&](const BenchWorld& w, int agents) -> absl::StatusOr<Timed> {
-    auto s = bench_session(w, agents, 1);
+    auto s = bench_session(w, agents, 1, nullptr, absl::GetFlag(FLAGS_motion_reject));
     if (!s.ok()) return s.status();
     for (int i = 0; i < c.window_steps; ++i)
       if (auto r = (*s)->step({}); !r.ok()) return r.status();
@@ -180,7 +180,7 @@ int bench_main(int argc, char** argv) {
     std::printf("step 19, 64 agents: incremental %.1f ms, full recompute %.1f ms: %.1fx\n", inc_ms, full_ms, full_ms / inc_ms);
 
   // Memory of a 64-agent session over a long rollout: flat once the window is full.
-  auto s = bench_session(*world, 64, 2);
+  auto s = bench_session(*world, 64, 2, nullptr, absl::GetFlag(FLAGS_motion_reject));
   if (!s.ok()) return fail(s.status());
   size_t after_window = 0;
   for (int i = 0; i < long_steps; ++i) {

@@ -58,7 +58,7 @@ constexpr const char* kUsage =
     "usage: scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --json OUT.json\n"
     "                          ([--model WEIGHTS] [--mode motion|full] | --baseline cv|log)\n"
     "                          [--sdc model|log] [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
-    "                          [--top-p P] [--temperature T]\n"
+    "                          [--top-p P] [--temperature T] [--motion-reject=false]\n"
     "                          [--wosac-submission DIR [--submission-metadata FILE.json]]\n"
     "       scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --submission FILE_OR_DIR --json OUT.json\n"
     "       scenestreamer eval --compare A.json B.json [--bootstrap N] [--seed S] [--json OUT.json]\n"
@@ -83,7 +83,7 @@ int compare_main(const CommandLine& line) {
   const std::string other =
       line.first_given({flag(FLAGS_data), flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_baseline), flag(FLAGS_sdc),
                         flag(FLAGS_rollouts), flag(FLAGS_plots), flag(FLAGS_threads), flag(FLAGS_top_p),
-                        flag(FLAGS_temperature)});
+                        flag(FLAGS_temperature), flag(FLAGS_motion_reject)});
   if (!other.empty()) return fail(absl::StrCat("--compare takes two result files: ", other, " does not apply"));
   if (line.positional().size() != 1)
     return fail(absl::StrCat("--compare needs two result files (A.json B.json), got ", 1 + line.positional().size()));
@@ -110,7 +110,7 @@ int compare_main(const CommandLine& line) {
 int eval_main(int argc, char** argv) {
   const Command command{"scenestreamer eval", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_seed), flag(FLAGS_sdc), flag(FLAGS_top_p),
-                         flag(FLAGS_temperature), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)},
+                         flag(FLAGS_temperature), flag(FLAGS_motion_reject), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)},
                         true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
@@ -130,14 +130,14 @@ int eval_main(int argc, char** argv) {
     else if (b == "log") options.policy = EvalPolicy::log_replay;
     else return fail("--baseline '" + b + "' is not cv or log");
     const std::string model_flag =
-        line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p), flag(FLAGS_temperature)});
+        line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject)});
     if (!model_flag.empty()) return fail("--baseline runs without a model: drop " + model_flag);
   }
   const std::string sdc = absl::GetFlag(FLAGS_sdc), mode = absl::GetFlag(FLAGS_mode);
   if (line.has(FLAGS_submission)) {
     const std::string other = line.first_given(
         {flag(FLAGS_baseline), flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_rollouts), flag(FLAGS_seed),
-         flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata), flag(FLAGS_top_p), flag(FLAGS_temperature)});
+         flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject)});
     if (!other.empty()) return fail("--submission scores the rollouts it holds: " + other + " does not apply");
     if (sdc != "model")
       return fail("--submission: a submission's rollouts drive every agent, the SDC included (--sdc model only)");
@@ -169,6 +169,7 @@ int eval_main(int argc, char** argv) {
   options.session.seed = absl::GetFlag(FLAGS_seed);
   options.session.top_p = absl::GetFlag(FLAGS_top_p);
   options.session.temperature = absl::GetFlag(FLAGS_temperature);
+  options.session.motion_reject = absl::GetFlag(FLAGS_motion_reject);
   int threads = absl::GetFlag(FLAGS_threads);
   if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (!(options.session.top_p > 0 && options.session.top_p <= 1)) return fail("--top-p must be in (0, 1]");
@@ -309,6 +310,7 @@ int eval_main(int argc, char** argv) {
   run.rollouts = options.rollouts;
   run.seed = options.session.seed;
   run.top_p = options.session.top_p, run.temperature = options.session.temperature;
+  run.motion_reject = options.session.motion_reject;
   const std::string json = json_text(eval_json(run, d, evaluations)) + "\n";
   const std::string out = absl::GetFlag(FLAGS_eval_json);
   if (out == "-") {

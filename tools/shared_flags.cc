@@ -19,6 +19,9 @@ ABSL_FLAG(std::string, sdc, "model",
           "poses, as an RL client's ego would");
 ABSL_FLAG(double, top_p, ss::SessionOptions{}.top_p, "the model's nucleus sampling of motion tokens, in (0, 1]");
 ABSL_FLAG(double, temperature, ss::SessionOptions{}.temperature, "the model's sampling temperature of every token");
+ABSL_FLAG(bool, motion_reject, ss::SessionOptions{}.motion_reject,
+          "reject sampling of motion: a sampled control that would run an agent into another, or a vehicle off the "
+          "road, is drawn again (--motion-reject=false: the model's draws as they come)");
 ABSL_FLAG(std::string, wosac_submission, "",
           "write the rollouts as a Waymo Open Sim Agents Challenge submission in this directory "
           "(submission.binproto-00000-of-0000N)");

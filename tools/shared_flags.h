@@ -17,6 +17,7 @@ ABSL_DECLARE_FLAG(std::string, mode);                 // simulate, eval
 ABSL_DECLARE_FLAG(std::string, sdc);                  // simulate, eval
 ABSL_DECLARE_FLAG(double, top_p);                     // simulate, eval
 ABSL_DECLARE_FLAG(double, temperature);               // simulate, eval
+ABSL_DECLARE_FLAG(bool, motion_reject);               // simulate, eval
 ABSL_DECLARE_FLAG(std::string, wosac_submission);     // convert, eval
 ABSL_DECLARE_FLAG(std::string, submission_metadata);  // convert, eval
 

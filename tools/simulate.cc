@@ -31,7 +31,7 @@ constexpr const char* kUsage =
     "usage: scenestreamer simulate --scenario FILE [--model WEIGHTS] --out OUT.tfrecord\n"
     "                              [--mode motion|full|densify] [--sdc model|log] [--steps N] [--seed S] [--rollout K]\n"
     "                              [--index I]\n"
-    "                              [--top-p P] [--temperature T] [--max-agents N] [--densify-target N]\n"
+    "                              [--top-p P] [--temperature T] [--motion-reject=false] [--max-agents N] [--densify-target N]\n"
     "  Rolls the scenario out from its current step for N model steps (0.5 s each; default: to the scenario's last\n"
     "  frame, 16 steps for a 91-frame WOMD scenario, 38 for a 20 s one; more steps go on past the log) and writes it\n"
     "  as a complete 10 Hz WOMD Scenario: the log's frames up to its current frame as logged (same id, current index,\n"
@@ -54,7 +54,7 @@ int fail(const std::string& msg) {
 int simulate_main(int argc, char** argv) {
   const Command command{"scenestreamer simulate", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_out), flag(FLAGS_mode), flag(FLAGS_sdc), flag(FLAGS_seed),
-                         flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature)}};
+                         flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (!line.has(FLAGS_simulate_scenario) || !line.has(FLAGS_out))
@@ -72,6 +72,7 @@ int simulate_main(int argc, char** argv) {
   o.seed = absl::GetFlag(FLAGS_seed);
   o.top_p = absl::GetFlag(FLAGS_top_p);
   o.temperature = absl::GetFlag(FLAGS_temperature);
+  o.motion_reject = absl::GetFlag(FLAGS_motion_reject);
   o.max_agents = absl::GetFlag(FLAGS_max_agents);
   o.densify_target = absl::GetFlag(FLAGS_densify_target);
   const int steps = absl::GetFlag(FLAGS_simulate_steps), index = absl::GetFlag(FLAGS_index),

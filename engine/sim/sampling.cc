@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 namespace ss {
@@ -45,27 +46,26 @@ int select_nucleus(std::vector<Candidate>& c, double threshold) {
   return 1;
 }
 
-}  // namespace
-
-int sample_token(std::span<const float> logits, double temperature, double top_p, Rng& rng) {
+// The tokens' probabilities after temperature (unnormalised), with the nucleus moved to the front; returns its size.
+int nucleus(std::span<const float> logits, double temperature, double top_p, std::vector<Candidate>& c) {
   const int n = static_cast<int>(logits.size());
   // exp(l / T - max) for all tokens at once (vectorised); -inf logits give 0.
   const Eigen::Map<const Eigen::ArrayXf> l(logits.data(), n);
   const float inv_t = static_cast<float>(1.0 / temperature);
   const Eigen::ArrayXf p = ((l - l.maxCoeff()) * inv_t).exp();
-  std::vector<Candidate> c(n);
+  c.resize(n);
   double sum = 0;
   for (int i = 0; i < n; ++i) {
     c[i] = {std::isfinite(p[i]) ? p[i] : 0.0f, i};
     sum += c[i].p;
   }
-  int keep = n;
-  if (top_p < 1.0) {
-    keep = select_nucleus(c, top_p * sum);
-    sum = 0;
-    for (int k = 0; k < keep; ++k) sum += c[k].p;
-  }
-  // One draw over the nucleus, walked in the order the selection left it (deterministic for given logits).
+  return top_p < 1.0 ? select_nucleus(c, top_p * sum) : n;
+}
+
+// One draw over c[0, keep), walked in order (deterministic for given candidates).
+int draw(const std::vector<Candidate>& c, int keep, Rng& rng) {
+  double sum = 0;
+  for (int k = 0; k < keep; ++k) sum += c[k].p;
   double u = rng.uniform() * sum;
   for (int k = 0; k < keep; ++k) {
     u -= c[k].p;
@@ -75,6 +75,29 @@ int sample_token(std::span<const float> logits, double temperature, double top_p
   for (int k = keep - 1; k >= 0; --k)
     if (c[k].p > 0) return c[k].token;
   return c[0].token;
+}
+
+}  // namespace
+
+int sample_token(std::span<const float> logits, double temperature, double top_p, Rng& rng) {
+  std::vector<Candidate> c;
+  const int keep = nucleus(logits, temperature, top_p, c);
+  return draw(c, keep, rng);
+}
+
+int sample_token_if(std::span<const float> logits, double temperature, double top_p, Rng& rng,
+                    const std::function<bool(int)>& accept) {
+  std::vector<Candidate> c;
+  const int keep = nucleus(logits, temperature, top_p, c);
+  // Draws until one is accepted: exactly the distribution given acceptance, and cheap when acceptance is likely.
+  // After kLazyDraws refusals, `accept` is asked of every token once and the draw is over those it takes.
+  constexpr int kLazyDraws = 8;
+  for (int k = 0; k < kLazyDraws; ++k)
+    if (const int t = draw(c, keep, rng); accept(t)) return t;
+  const auto end = std::stable_partition(c.begin(), c.begin() + keep,
+                                         [&](const Candidate& x) { return x.p > 0 && accept(x.token); });
+  const int accepted = static_cast<int>(end - c.begin());
+  return accepted > 0 ? draw(c, accepted, rng) : -1;
 }
 
 }  // namespace ss

@@ -31,6 +31,8 @@ namespace {
 constexpr int kRejectTries = 6;             // paper appendix D: resample an overlapping new agent at most 6 times
 constexpr double kMaxStepDistance = 50.0;   // metres in one 0.5 s step (100 m/s): more is a teleport (StateForce)
 constexpr double kMaxSpeed = 100.0;         // m/s
+constexpr double kRejectBrake = 6.0;        // m/s^2: the braking motion reject sampling leaves room for
+constexpr double kRejectTopP = 0.99999;     // a redraw's controls: all but the least likely 0.001 % of the mass
 constexpr int kCentreToken = kMotionBins / 2 * kMotionBins + kMotionBins / 2;  // zero acceleration, zero yaw rate
 
 StepState state_from_kin(const KinematicState& k, const StepState& box) {
@@ -141,11 +143,101 @@ void Session::trim_replay() {
 void Session::sample_motions(const Mat& h) {
   if (h.rows() == 0) return;
   const Mat logits = model_->motion_logits(h);
+  const auto row = [&](size_t i) { return std::span<const float>(logits.row(i).data(), logits.cols()); };
   for (size_t i = 0; i < agents_.size(); ++i) {
     Agent& a = agents_[i];
-    a.next_motion = a.controlled ? -1
-                                 : sample_token({logits.row(i).data(), static_cast<size_t>(logits.cols())},
-                                                options_.temperature, options_.top_p, rng_);
+    a.next_motion = a.controlled ? -1 : sample_token(row(i), options_.temperature, options_.top_p, rng_);
+  }
+  if (options_.motion_reject) reject_motion_faults(row);
+}
+
+// Reject sampling of motion (the paper's reject sampling of new agents, appendix D, applied to controls). A
+// sampled control is refused if it (3) runs the agent's box into another's at the next step, (2) takes a vehicle
+// that is on the road now off it, or (1) leaves the agent so fast that braking at kRejectBrake would not stop it
+// short of another (which moves on at its velocity meanwhile); pairs whose boxes overlap already are exempt. A
+// refused agent draws again from its motion distribution restricted to the controls with no fault (sample_token_if
+// over kRejectTopP of the mass, not only the top-p nucleus: braking hard is often outside it; all 1,089 controls made
+// eval 1.6x slower for realism within noise), else to those with only fault 1,
+// else only faults 1-2; if none passes, it keeps its draw. Agents are visited in order, each checking against the
+// others' latest choices (a controlled agent: its last control repeated, the best guess of the caller's next pose).
+void Session::reject_motion_faults(const std::function<std::span<const float>(size_t)>& row) {
+  struct Next {
+    Box box;        // at the next step
+    Vec2 velocity;  // m/s, at the next step
+    double speed;   // signed, along the heading
+  };
+  const size_t n = agents_.size();
+  if (!event_map_) event_map_ = std::make_shared<const EventMap>(event_map_from_scenario(*scenario_));
+  const RoadEdges& edges = event_map_->edges;
+  const auto on_road = [&](const Box& b) {
+    if (edges.empty()) return true;
+    // No edge lies within |d| of the centre, so a box within that radius is all on the centre's side.
+    const double d = edges.signed_distance(b.pose.x, b.pose.y, 0);
+    const double half_diagonal = std::hypot(b.length, b.width) / 2;
+    if (std::abs(d) > half_diagonal) return d < 0;
+    const double c = std::cos(b.pose.heading), s = std::sin(b.pose.heading);
+    for (const auto [sx, sy] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}}) {
+      const double lx = sx * b.length / 2, ly = sy * b.width / 2;
+      if (edges.signed_distance(b.pose.x + c * lx - s * ly, b.pose.y + s * lx + c * ly, 0) > 0) return false;
+    }
+    return true;
+  };
+  const auto next_of = [&](const Agent& a, int token) {
+    if (token < 0 || token == kMotionStart) token = kCentreToken;
+    const KinematicState k = apply_motion_token(a.kin, token);
+    return Next{box_of(state_from_kin(k, a.state)), {k.speed * std::cos(k.heading), k.speed * std::sin(k.heading)},
+                k.speed};
+  };
+  const auto moved = [](Box b, Vec2 d) {
+    b.pose.x += d.x;
+    b.pose.y += d.y;
+    return b;
+  };
+  std::vector<Box> now(n);
+  std::vector<Next> next(n);
+  std::vector<double> reach(n);     // no point of the agent's box, braking or not, gets farther from its centre now
+  std::vector<int8_t> keep_road(n, -1);  // a vehicle (type 0) on the road now: 1 yes, 0 no, -1 not asked yet
+  for (size_t i = 0; i < n; ++i) {
+    const Agent& a = agents_[i];
+    now[i] = box_of(a.state);
+    next[i] = next_of(a, a.controlled ? a.last_motion : a.next_motion);
+    const double v = std::abs(a.kin.speed) + kMaxAccel * kStepSeconds;
+    reach[i] = std::hypot(a.state.length, a.state.width) / 2 + v * kStepSeconds + v * v / (2 * kRejectBrake);
+  }
+  // The others agent i could touch within the step or while braking, and whose boxes it does not overlap now.
+  std::vector<size_t> near;
+  const auto find_near = [&](size_t i) {
+    near.clear();
+    for (size_t j = 0; j < n; ++j)
+      if (j != i && distance({now[i].pose.x, now[i].pose.y}, {now[j].pose.x, now[j].pose.y}) <= reach[i] + reach[j] &&
+          !boxes_overlap(now[i], now[j]))
+        near.push_back(j);
+  };
+  // Whether control `c` of agent i has no fault above `level` (faults as above; the road is looked at last, and
+  // only when it can decide: its queries cost the most).
+  const auto passes = [&](size_t i, const Next& c, int level) {
+    const double t_stop = std::abs(c.speed) / kRejectBrake;
+    const Box stopped = moved(c.box, (t_stop / 2) * c.velocity);
+    for (size_t j : near) {
+      if (boxes_overlap(c.box, next[j].box)) return false;
+      if (level < 1 && boxes_overlap(stopped, moved(next[j].box, t_stop * next[j].velocity))) return false;
+    }
+    if (level >= 2 || agents_[i].type != 0) return true;
+    if (keep_road[i] < 0) keep_road[i] = on_road(now[i]);
+    return !keep_road[i] || on_road(c.box);
+  };
+  for (size_t i = 0; i < n; ++i) {
+    Agent& a = agents_[i];
+    if (a.controlled) continue;
+    find_near(i);
+    if (passes(i, next[i], 0)) continue;
+    int token = -1;
+    for (int level = 0; level < 3 && token < 0; ++level)
+      token = sample_token_if(row(i), options_.temperature, kRejectTopP, rng_,
+                              [&](int t) { return passes(i, next_of(a, t), level); });
+    if (token < 0) continue;
+    a.next_motion = token;
+    next[i] = next_of(a, token);
   }
 }
 

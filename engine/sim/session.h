@@ -4,9 +4,11 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -140,6 +142,7 @@ class Session {
   // Samples one new agent after the group's last output `h_last`; returns false when the model (or the cap) ends.
   bool sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order, int64_t* new_id);
   void sample_motions(const Mat& h);  // h: the agents' motion-token outputs, in agent order
+  void reject_motion_faults(const std::function<std::span<const float>(size_t)>& row);  // row(i): agent i's logits
   int allocate_slot();
   // tick() without the events.
   absl::StatusOr<StepResult> advance_tick(const std::vector<ControlInput>& controls);

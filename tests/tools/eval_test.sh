@@ -50,7 +50,7 @@ assert p["log"]["agents"] > 0 and p["generated_per_rollout"]["agents"] >= 0, p
 assert p["log"]["vehicles"] <= p["log"]["agents"] and 0 <= p["scenarios_count_within_30pct"] <= p["scenarios_with_log_agents"] <= 3, p
 assert all("placed_agents" in s for s in runs["full"]["per_scenario"])
 assert all("placed_agents" not in r for name, r in runs.items() if name != "full")
-assert runs["motion"]["sampling"] == {"top_p": 0.8, "temperature": 0.7} and "sampling" not in runs["cv"]
+assert runs["motion"]["sampling"] == {"top_p": 0.8, "temperature": 0.7, "motion_reject": True} and "sampling" not in runs["cv"]
 assert runs["motion"]["mode"] == "motion" and runs["cv"]["mode"] is None
 assert runs["log"]["realism_meta"] > runs["cv"]["realism_meta"], (runs["log"]["realism_meta"], runs["cv"]["realism_meta"])
 assert runs["log"]["min_ade"] == 0 and runs["cv"]["min_ade"] > 0

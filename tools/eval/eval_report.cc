@@ -13,8 +13,8 @@ using nlohmann::json;
 
 std::string policy_label(const EvalRunInfo& run) {
   if (run.policy != EvalPolicy::model) return eval_policy_name(run.policy);
-  return absl::StrFormat("model (%s mode, top-p %g, temperature %g)", session_mode_name(run.mode), run.top_p,
-                         run.temperature);
+  return absl::StrFormat("model (%s mode, top-p %g, temperature %g, motion reject sampling %s)",
+                         session_mode_name(run.mode), run.top_p, run.temperature, run.motion_reject ? "on" : "off");
 }
 
 void put_realism(json& j, const RealismScores& r) {
@@ -80,7 +80,7 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
   j["sdc"] = sdc_rule_name(run.sdc);
   j["sdc_rule"] = sdc_rule_text(run.sdc);
   if (!run.model_path.empty()) j["model"] = run.model_path;
-  if (run.policy == EvalPolicy::model) j["sampling"] = {{"top_p", run.top_p}, {"temperature", run.temperature}};
+  if (run.policy == EvalPolicy::model) j["sampling"] = {{"top_p", run.top_p}, {"temperature", run.temperature}, {"motion_reject", run.motion_reject}};
   put_realism(j, d.realism);
   std::vector<RealismScores> windows;
   std::vector<int> window_scenarios;

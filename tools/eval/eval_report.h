@@ -17,6 +17,7 @@ struct EvalRunInfo {
   int rollouts = 0;
   uint64_t seed = 0;
   double top_p = 0, temperature = 0;  // the model's sampling
+  bool motion_reject = true;           // reject sampling of motion (SessionOptions::motion_reject)
   std::string model_path;  // empty for the baselines
 };
 

@@ -99,5 +99,33 @@ TEST(Rng, KnownSequenceAndUniformRange) {
   EXPECT_GT(hi, 0.999);
 }
 
+// The draw given acceptance: refused tokens never come, the accepted keep their relative odds, whether the lazy
+// draws find one (likely acceptance) or the pass over every token does (a token the first draws almost never hit).
+TEST(Sampling, SampleTokenIfIsTheDistributionGivenAcceptance) {
+  const std::vector<float> logits = {std::log(1.0f), std::log(2.0f), std::log(3.0f), std::log(4.0f)};
+  Rng rng(5);
+  std::vector<int> h(4);
+  for (int i = 0; i < 40000; ++i) ++h[sample_token_if(logits, 1.0, 1.0, rng, [](int t) { return t == 0 || t == 2; })];
+  EXPECT_EQ(h[1] + h[3], 0);
+  EXPECT_NEAR(h[0] / 4e4, 0.25, 0.01);
+  EXPECT_NEAR(h[2] / 4e4, 0.75, 0.01);
+
+  std::vector<float> rare(1089, 0.0f);
+  rare[7] = -8.0f;  // p about 3e-4 / 1089: after 8 refused draws, the pass over the tokens finds it
+  int calls = 0;
+  for (int i = 0; i < 100; ++i)
+    EXPECT_EQ(sample_token_if(rare, 1.0, 1.0, rng, [&](int t) { return ++calls, t == 7; }), 7);
+  EXPECT_GT(calls, 100 * 1000) << "each accept() pass visits the whole vocabulary";
+}
+
+TEST(Sampling, SampleTokenIfStaysInTheNucleusAndSaysWhenNothingPasses) {
+  const std::vector<float> logits = {0.0f, std::log(2.0f), std::log(7.0f)};  // 0.1, 0.2, 0.7
+  Rng rng(2);
+  // Top-p 0.75 keeps tokens 2 and 1: token 0 is outside the nucleus, so accepting only it is accepting nothing.
+  EXPECT_EQ(sample_token_if(logits, 1.0, 0.75, rng, [](int t) { return t == 0; }), -1);
+  EXPECT_EQ(sample_token_if(logits, 1.0, 1.0, rng, [](int) { return false; }), -1);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(sample_token_if(logits, 1.0, 0.75, rng, [](int t) { return t != 2; }), 1);
+}
+
 }  // namespace
 }  // namespace ss

@@ -165,9 +165,19 @@ TEST_F(TickTest, StateForcedAgentDoesNotJumpBeforeTheStep) {
       other = &a;
   ASSERT_TRUE(other);
   ASSERT_GT(std::hypot(other->state.vx, other->state.vy), 0.5);
+  // 72 m away: between the steps the agent moves on at its own velocity, far from the target. Of the four
+  // directions, one that keeps the target inside the SDC's region (else the agent would retire at the step).
+  const AgentView* sdc = nullptr;
+  for (const AgentView& a : at_step.agents)
+    if (a.controlled) sdc = &a;
+  ASSERT_TRUE(sdc);
   StepState target = other->state;
-  target.x += 60;  // 72 m away: between the steps the agent moves on at its own velocity, far from the target
-  target.y -= 40;
+  for (const auto [dx, dy] : {std::pair{60.0, -40.0}, {-60.0, 40.0}, {60.0, 40.0}, {-60.0, -40.0}}) {
+    target.x = other->state.x + dx;
+    target.y = other->state.y + dy;
+    if (std::hypot(target.x - sdc->state.x, target.y - sdc->state.y) < 90) break;
+  }
+  ASSERT_LT(std::hypot(target.x - sdc->state.x, target.y - sdc->state.y), 90);
   StateForceRequest req;
   req.agents = {{other->id, target}};
   ASSERT_TRUE(s->state_force(req).ok());
