@@ -169,12 +169,12 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   const size_t n = agents_.size();
   if (!event_map_) event_map_ = std::make_shared<const EventMap>(event_map_from_scenario(*scenario_));
   const RoadEdges& edges = event_map_->edges;
-  const auto on_road = [&](const Box& b) {
-    if (edges.empty()) return true;
-    // No edge lies within |d| of the centre, so a box within that radius is all on the centre's side.
-    const double d = edges.signed_distance(b.pose.x, b.pose.y, 0);
+  // Whether every corner of box b is on the road. `centre_d` is the signed distance of some point p to the road edge
+  // and `from_p` how far b's centre is from p: no edge lies within |centre_d| of p, so a box whose corners all lie
+  // within that radius of p is on p's side, with no further query (the common case: one query per agent and step).
+  const auto on_road = [&](const Box& b, double centre_d, double from_p) {
     const double half_diagonal = std::hypot(b.length, b.width) / 2;
-    if (std::abs(d) > half_diagonal) return d < 0;
+    if (std::abs(centre_d) > from_p + half_diagonal) return centre_d < 0;
     const double c = std::cos(b.pose.heading), s = std::sin(b.pose.heading);
     for (const auto [sx, sy] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}}) {
       const double lx = sx * b.length / 2, ly = sy * b.width / 2;
@@ -197,6 +197,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   std::vector<Next> next(n);
   std::vector<double> reach(n);     // no point of the agent's box, braking or not, gets farther from its centre now
   std::vector<int8_t> keep_road(n, -1);  // a vehicle (type 0) on the road now: 1 yes, 0 no, -1 not asked yet
+  std::vector<double> edge_d(n);          // signed distance of its centre now to the road edge, once asked
   for (size_t i = 0; i < n; ++i) {
     const Agent& a = agents_[i];
     now[i] = box_of(a.state);
@@ -222,9 +223,13 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
       if (boxes_overlap(c.box, next[j].box)) return false;
       if (level < 1 && boxes_overlap(stopped, moved(next[j].box, t_stop * next[j].velocity))) return false;
     }
-    if (level >= 2 || agents_[i].type != 0) return true;
-    if (keep_road[i] < 0) keep_road[i] = on_road(now[i]);
-    return !keep_road[i] || on_road(c.box);
+    if (level >= 2 || agents_[i].type != 0 || edges.empty()) return true;
+    if (keep_road[i] < 0) {
+      edge_d[i] = edges.signed_distance(now[i].pose.x, now[i].pose.y, 0);
+      keep_road[i] = on_road(now[i], edge_d[i], 0);
+    }
+    return !keep_road[i] ||
+           on_road(c.box, edge_d[i], distance({c.box.pose.x, c.box.pose.y}, {now[i].pose.x, now[i].pose.y}));
   };
   for (size_t i = 0; i < n; ++i) {
     Agent& a = agents_[i];
