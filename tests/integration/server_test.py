@@ -107,6 +107,13 @@ class RpcTest(unittest.TestCase):
         self.assertEqual(info.scenario_name, self.name)
         self.assertGreater(info.memory_bytes, 0)
         self.assertIn(c.session_id, [x.session_id for x in s.ListSessions(pb.ListSessionsRequest()).sessions])
+        # Reject sampling of motion is on unless the request turns it off; the session's info says which.
+        self.assertFalse(info.sampling.no_motion_reject)
+        raw = s.CreateSession(pb.CreateSessionRequest(scenario_name=self.name, seed=5,
+                                                      sampling=pb.SamplingOptions(no_motion_reject=True)))
+        self.assertTrue(s.GetSession(pb.GetSessionRequest(session_id=raw.session_id)).info.sampling.no_motion_reject)
+        self.assertEqual(len(rollout(s, raw.session_id, raw.initial, 1)), 1)
+        s.CloseSession(pb.CloseSessionRequest(session_id=raw.session_id))
 
         # Fork: both branches continue identically with the same inputs (RNG and cache copied).
         f = s.ForkSession(pb.ForkSessionRequest(session_id=c.session_id)).session_id
