@@ -163,6 +163,7 @@ void Session::sample_motions(const Mat& h) {
 void Session::reject_motion_faults(const std::function<std::span<const float>(size_t)>& row) {
   struct Next {
     Box box;        // at the next step
+    Box mid;        // half-way there, as the 10 Hz frames draw it (engine/tokens/resample.h: a straight line)
     Vec2 velocity;  // m/s, at the next step
     double speed;   // signed, along the heading
   };
@@ -171,10 +172,12 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   const RoadEdges& edges = event_map_->edges;
   // Whether every corner of box b is on the road. `centre_d` is the signed distance of some point p to the road edge
   // and `from_p` how far b's centre is from p: no edge lies within |centre_d| of p, so a box whose corners all lie
-  // within that radius of p is on p's side, with no further query (the common case: one query per agent and step).
+  // within that radius of p is on p's side, with no further query; else the same test about b's own centre; else
+  // its corners.
   const auto on_road = [&](const Box& b, double centre_d, double from_p) {
     const double half_diagonal = std::hypot(b.length, b.width) / 2;
     if (std::abs(centre_d) > from_p + half_diagonal) return centre_d < 0;
+    if (const double d = edges.signed_distance(b.pose.x, b.pose.y, 0); std::abs(d) > half_diagonal) return d < 0;
     const double c = std::cos(b.pose.heading), s = std::sin(b.pose.heading);
     for (const auto [sx, sy] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}}) {
       const double lx = sx * b.length / 2, ly = sy * b.width / 2;
@@ -185,7 +188,10 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   const auto next_of = [&](const Agent& a, int token) {
     if (token < 0 || token == kMotionStart) token = kCentreToken;
     const KinematicState k = apply_motion_token(a.kin, token);
-    return Next{box_of(state_from_kin(k, a.state)), {k.speed * std::cos(k.heading), k.speed * std::sin(k.heading)},
+    Box mid = box_of(a.state);
+    mid.pose = {(a.kin.x + k.x) / 2, (a.kin.y + k.y) / 2,
+                std::atan2(std::sin(a.kin.heading) + std::sin(k.heading), std::cos(a.kin.heading) + std::cos(k.heading))};
+    return Next{box_of(state_from_kin(k, a.state)), mid, {k.speed * std::cos(k.heading), k.speed * std::sin(k.heading)},
                 k.speed};
   };
   const auto moved = [](Box b, Vec2 d) {
@@ -220,7 +226,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     const double t_stop = std::abs(c.speed) / kRejectBrake;
     const Box stopped = moved(c.box, (t_stop / 2) * c.velocity);
     for (size_t j : near) {
-      if (boxes_overlap(c.box, next[j].box)) return false;
+      if (boxes_overlap(c.box, next[j].box) || boxes_overlap(c.mid, next[j].mid)) return false;
       if (level < 1 && boxes_overlap(stopped, moved(next[j].box, t_stop * next[j].velocity))) return false;
     }
     if (level >= 2 || agents_[i].type != 0 || edges.empty()) return true;
