@@ -110,7 +110,8 @@ int compare_main(const CommandLine& line) {
 int eval_main(int argc, char** argv) {
   const Command command{"scenestreamer eval", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_seed), flag(FLAGS_sdc), flag(FLAGS_top_p),
-                         flag(FLAGS_temperature), flag(FLAGS_motion_reject), flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata)},
+                         flag(FLAGS_temperature), flag(FLAGS_motion_reject), flag(FLAGS_wosac_submission),
+                         flag(FLAGS_submission_metadata)},
                         true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
@@ -130,14 +131,16 @@ int eval_main(int argc, char** argv) {
     else if (b == "log") options.policy = EvalPolicy::log_replay;
     else return fail("--baseline '" + b + "' is not cv or log");
     const std::string model_flag =
-        line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject)});
+        line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p), flag(FLAGS_temperature),
+                          flag(FLAGS_motion_reject)});
     if (!model_flag.empty()) return fail("--baseline runs without a model: drop " + model_flag);
   }
   const std::string sdc = absl::GetFlag(FLAGS_sdc), mode = absl::GetFlag(FLAGS_mode);
   if (line.has(FLAGS_submission)) {
     const std::string other = line.first_given(
         {flag(FLAGS_baseline), flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_rollouts), flag(FLAGS_seed),
-         flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject)});
+         flag(FLAGS_wosac_submission), flag(FLAGS_submission_metadata), flag(FLAGS_top_p), flag(FLAGS_temperature),
+         flag(FLAGS_motion_reject)});
     if (!other.empty()) return fail("--submission scores the rollouts it holds: " + other + " does not apply");
     if (sdc != "model")
       return fail("--submission: a submission's rollouts drive every agent, the SDC included (--sdc model only)");

@@ -152,13 +152,13 @@ void Session::sample_motions(const Mat& h) {
 }
 
 // Reject sampling of motion (the paper's reject sampling of new agents, appendix D, applied to controls). A
-// sampled control is refused if it (3) runs the agent's box into another's at the next step, (2) takes a vehicle
-// that is on the road now off it, or (1) leaves the agent so fast that braking at kRejectBrake would not stop it
-// short of another (which moves on at its velocity meanwhile); pairs whose boxes overlap already are exempt. A
-// refused agent draws again from its motion distribution restricted to the controls with no fault (sample_token_if
-// over kRejectTopP of the mass, not only the top-p nucleus: braking hard is often outside it; all 1,089 controls made
-// eval 1.6x slower for realism within noise), else to those with only fault 1,
-// else only faults 1-2; if none passes, it keeps its draw. Agents are visited in order, each checking against the
+// sampled control is refused if it (3) runs the agent's box into another's at the next step (at its end or half-way,
+// as the 10 Hz frames draw it), (2) takes a vehicle whose box is on the road now off it, or (1) leaves the agent so
+// fast that braking at kRejectBrake would not stop it short of another (which moves on at its velocity meanwhile);
+// pairs whose boxes overlap already are exempt. A refused agent draws again from its motion distribution restricted
+// to the controls with no fault (sample_token_if over kRejectTopP of the mass, not only the top-p nucleus: braking
+// hard is often outside it; all 1,089 controls made eval 1.6x slower for realism within noise), else with fault 1
+// only, else faults 1-2; if none passes, it keeps its draw. Agents are visited in order, each checking against the
 // others' latest choices (a controlled agent: its last control repeated, the best guess of the caller's next pose).
 void Session::reject_motion_faults(const std::function<std::span<const float>(size_t)>& row) {
   struct Next {

@@ -31,7 +31,7 @@ struct SessionOptions {
   std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
   bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too
   int densify_target = 0;      // densify: agents to reach at the first step
-  bool motion_reject = true;   // redraw a sampled control that would run the agent into another (reject sampling)
+  bool motion_reject = true;   // redraw a control that runs an agent into another or a vehicle off the road
   int tick_hz = 2;             // ticks per second: 2 (a tick is a model step) or 10 (five ticks per model step)
   bool operator==(const SessionOptions&) const = default;
 };
