@@ -172,17 +172,15 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   const RoadEdges& edges = event_map_->edges;
   // Whether every corner of box b is on the road. `centre_d` is the signed distance of some point p to the road edge
   // and `from_p` how far b's centre is from p: no edge lies within |centre_d| of p, so a box whose corners all lie
-  // within that radius of p is on p's side, with no further query; else the same test about b's own centre; else
-  // its corners.
+  // within that radius of p is on p's side, with no further query; else the same test about b's own centre (unless
+  // p is that centre); else its corners.
   const auto on_road = [&](const Box& b, double centre_d, double from_p) {
     const double half_diagonal = std::hypot(b.length, b.width) / 2;
     if (std::abs(centre_d) > from_p + half_diagonal) return centre_d < 0;
-    if (const double d = edges.signed_distance(b.pose.x, b.pose.y, 0); std::abs(d) > half_diagonal) return d < 0;
-    const double c = std::cos(b.pose.heading), s = std::sin(b.pose.heading);
-    for (const auto [sx, sy] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}}) {
-      const double lx = sx * b.length / 2, ly = sy * b.width / 2;
-      if (edges.signed_distance(b.pose.x + c * lx - s * ly, b.pose.y + s * lx + c * ly, 0) > 0) return false;
-    }
+    if (from_p > 0)
+      if (const double d = edges.signed_distance(b.pose.x, b.pose.y, 0); std::abs(d) > half_diagonal) return d < 0;
+    for (const Vec2& corner : box_corners(b))
+      if (edges.signed_distance(corner.x, corner.y, 0) > 0) return false;
     return true;
   };
   const auto next_of = [&](const Agent& a, int token) {

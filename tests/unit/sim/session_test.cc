@@ -4,8 +4,8 @@
 
 #include <cmath>
 #include <functional>
-#include <map>
 #include <limits>
+#include <map>
 #include <set>
 #include <thread>
 
@@ -152,14 +152,12 @@ TEST_F(SessionTest, StepThreadsGiveTheSameRollout) {
 // off the road; with it on, far fewer do so, and what it changes is only how controls are drawn.
 TEST_F(SessionTest, MotionRejectKeepsAgentsApartAndVehiclesOnTheRoad) {
   const EventMap map = event_map_from_scenario(*w().scenario);
-  const auto box = [](const AgentView& a) { return Box{{a.state.x, a.state.y, a.state.heading}, a.state.length, a.state.width}; };
+  const auto box = [](const AgentView& a) {
+    return Box{{a.state.x, a.state.y, a.state.heading}, a.state.length, a.state.width};
+  };
   const auto on_road = [&](const AgentView& a) {
-    const Box b = box(a);
-    const double c = std::cos(b.pose.heading), s = std::sin(b.pose.heading);
-    for (const auto [sx, sy] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}})
-      if (map.edges.signed_distance(b.pose.x + c * sx * b.length / 2 - s * sy * b.width / 2,
-                                    b.pose.y + s * sx * b.length / 2 + c * sy * b.width / 2, 0) > 0)
-        return false;
+    for (const Vec2& c : box_corners(box(a)))
+      if (map.edges.signed_distance(c.x, c.y, 0) > 0) return false;
     return true;
   };
   struct Faults {
@@ -195,9 +193,12 @@ TEST_F(SessionTest, MotionRejectKeepsAgentsApartAndVehiclesOnTheRoad) {
   const Faults off = run(false), on = run(true);
   EXPECT_GE(off.overlaps, 10) << "random weights should make collisions for the test to mean anything";
   EXPECT_GE(off.off_road, 10);
-  EXPECT_LE(on.overlaps * 4, off.overlaps) << on.overlaps << " new overlaps with reject sampling, " << off.overlaps << " without";
-  EXPECT_LE(on.off_road * 3, off.off_road) << on.off_road << " vehicles left the road with reject sampling, " << off.off_road << " without";
-  std::printf("new overlaps %d -> %d, vehicles leaving the road %d -> %d\n", off.overlaps, on.overlaps, off.off_road, on.off_road);
+  EXPECT_LE(on.overlaps * 4, off.overlaps)
+      << on.overlaps << " new overlaps with reject sampling, " << off.overlaps << " without";
+  EXPECT_LE(on.off_road * 3, off.off_road)
+      << on.off_road << " vehicles left the road with reject sampling, " << off.off_road << " without";
+  std::printf("new overlaps %d -> %d, vehicles leaving the road %d -> %d\n", off.overlaps, on.overlaps, off.off_road,
+              on.off_road);
 }
 
 TEST_F(SessionTest, FullModeGeneratesItsOwnAgents) {
