@@ -184,6 +184,12 @@ absl::StatusOr<TeacherForcedExample> build_example(const Scenario& scenario, con
   std::stable_sort(agents.begin(), agents.end(), [](const SeqAgent& a, const SeqAgent& b) {
     return a.rank != b.rank ? a.rank < b.rank : a.distance < b.distance;
   });
+  // Steps where an agent beyond the cap is inside the region: the scene goes on after the last agent kept, so
+  // that step's end of agents is not the log's answer and has no target. (Training toward an end there taught the
+  // model that scenes stop at the cap: full mode placed 15-40 agents where the log holds 2-130.)
+  std::vector<bool> capped(steps, false);
+  for (size_t k = options.max_agents; k < agents.size(); ++k)
+    for (int t = agents[k].first; t <= agents[k].last; ++t) capped[t] = true;
   if (static_cast<int>(agents.size()) > options.max_agents) agents.resize(options.max_agents);
   // Motion tokens for the agents kept (the search over 1089 controls is the costly part), rolled forward on their
   // reconstruction; the tokens' inputs are the reconstructed states, as a rollout's are. A closed-loop example
@@ -254,7 +260,8 @@ absl::StatusOr<TeacherForcedExample> build_example(const Scenario& scenario, con
       alive.push_back({scenario.tracks[a.track].id, slots[k], model_type(scenario.tracks[a.track].type), a.states[t],
                        a.motion[t]});
     }
-    ex.end_target[add(sos_token(t))] = alive.empty() ? 1 : 0;
+    const int end = capped[t] ? kNoTarget : 1;
+    ex.end_target[add(sos_token(t))] = alive.empty() ? end : 0;
     for (size_t o = 0; o < alive.size(); ++o) {
       std::vector<DecoderToken> group;
       const int seg = anchor_segment(index, alive[o].state);
@@ -263,7 +270,7 @@ absl::StatusOr<TeacherForcedExample> build_example(const Scenario& scenario, con
       ex.segment_target[add(group[1])] = seg;
       const StateBins bins = relative_state_bins(alive[o].state, ex.segments[seg].pose);
       std::copy(bins.begin(), bins.end(), ex.state_target[add(group[2])].begin());
-      ex.end_target[add(group[3])] = o + 1 < alive.size() ? 0 : 1;
+      ex.end_target[add(group[3])] = o + 1 < alive.size() ? 0 : end;
     }
     add(eos_token(t));
     for (size_t k = 0, o = 0; k < agents.size(); ++k) {

@@ -57,7 +57,8 @@ struct TeacherForcedExample {
   std::vector<int> motion_target;     // motion: the token to the next step (0..1088)
   std::vector<int> type_target;       // SOA: the agent's type
   std::vector<int> segment_target;    // TYPE: the anchor segment (index into segments)
-  std::vector<int> end_target;        // SOS and RS: 0 another agent follows, 1 end of agents
+  std::vector<int> end_target;        // SOS and RS: 0 another agent follows, 1 end of agents (none when agents
+                                      // beyond max_agents are in the region at that step)
   std::vector<std::array<int, kRsFields>> state_target;  // MS: the relative-state bins (all kNoTarget elsewhere)
   int agents = 0;                     // agents in the sequence
 };

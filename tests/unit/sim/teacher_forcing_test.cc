@@ -64,7 +64,9 @@ TEST(TeacherForcing, EachStepIsLightsThenTheGroupThenMotion) {
 }
 
 TEST(TeacherForcing, TargetsAreWhatTheSequenceDoesNext) {
-  const TeacherForcedExample ex = example();
+  TeacherForcingOptions o;
+  o.max_agents = config().agent_slots;  // no agent left out: every step's end of agents is the log's
+  const TeacherForcedExample ex = example(o);
   const auto& tok = ex.tokens;
   // Where each object's motion and light tokens are, by step.
   std::map<std::pair<int64_t, int>, int> at;
@@ -180,6 +182,28 @@ TEST(TeacherForcing, AgentCapSlotsAndDeterminism) {
   for (const DecoderToken& t : a.tokens)
     if (t.kind == TokenKind::soa) drawn.insert(t.agent_slot);
   EXPECT_NE(drawn, std::set<int>({0, 1, 2, 3, 4})) << "a seed draws the slots";
+}
+
+// With agents left out, the scene goes on after the last one kept: that step's end of agents has no target (else
+// the model learns that scenes end at the cap). Uncapped, every step ends with 1.
+TEST(TeacherForcing, AnEndAtTheAgentCapIsNotATarget) {
+  auto ends = [](const TeacherForcedExample& ex) {
+    std::vector<int> out;  // each step's last end target (the SOS's when no agent is alive)
+    for (size_t i = 0; i < ex.tokens.size(); ++i)
+      if (ex.tokens[i].kind == TokenKind::eos) out.push_back(ex.end_target[i - 1]);
+    return out;
+  };
+  TeacherForcingOptions o;
+  o.max_agents = config().agent_slots;
+  const TeacherForcedExample all = example(o);
+  ASSERT_GT(all.agents, 5);
+  EXPECT_EQ(ends(all), std::vector<int>(all.steps, 1));
+  o.max_agents = 5;
+  const TeacherForcedExample capped = example(o);
+  EXPECT_EQ(ends(capped), std::vector<int>(capped.steps, kNoTarget));
+  int zeros = 0;
+  for (int e : capped.end_target) zeros += e == 0;
+  EXPECT_GT(zeros, 4 * capped.steps) << "the agents kept still say that another follows";
 }
 
 TEST(TeacherForcing, BadInputsAreRefused) {
