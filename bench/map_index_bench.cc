@@ -1,6 +1,6 @@
-// Map segmentation and SegmentIndex queries on the real 301-feature WOMD map. Each benchmark iteration runs the whole
-// batch of 10^5 queries, so the reported time is the time for 10^5 queries; the brute-force nearest runs the same
-// queries so the speed-up is visible in one run.
+// Map segmentation, SegmentIndex queries and road-edge distances on the real 301-feature WOMD map. Each benchmark
+// iteration runs the whole batch of 10^5 queries, so the reported time is the time for 10^5 queries; the brute-force
+// nearest runs the same queries so the speed-up is visible in one run.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,9 +11,11 @@
 
 #include <benchmark/benchmark.h>
 
+#include "engine/map/road_edges.h"
 #include "engine/map/segments.h"
 #include "engine/map/spatial_index.h"
 #include "engine/scenario/read.h"
+#include "engine/sim/events.h"
 
 namespace ss {
 namespace {
@@ -26,6 +28,7 @@ struct Fixture {
   Scenario scenario;
   std::vector<MapSegment> segments;
   std::vector<Pose> queries;
+  std::vector<Pose> near_lanes;  // lane points moved up to 3 m: where agents' corners are (reject sampling asks these)
 };
 
 const Fixture& fixture() {
@@ -49,6 +52,15 @@ const Fixture& fixture() {
     std::uniform_real_distribution<double> ux(x0, x1), uy(y0, y1), uh(-kPi, kPi);
     f.queries.reserve(kQueries);
     for (int i = 0; i < kQueries; ++i) f.queries.push_back({ux(rng), uy(rng), uh(rng)});
+    std::vector<MapPoint> lane_points;
+    for (const MapFeature& m : f.scenario.map_features)
+      if (m.kind == MapFeatureKind::lane) lane_points.insert(lane_points.end(), m.points.begin(), m.points.end());
+    std::uniform_int_distribution<size_t> pick(0, lane_points.size() - 1);
+    std::uniform_real_distribution<double> jitter(-3.0, 3.0);
+    for (int i = 0; i < kQueries && !lane_points.empty(); ++i) {
+      const MapPoint& p = lane_points[pick(rng)];
+      f.near_lanes.push_back({p.x + jitter(rng), p.y + jitter(rng), 0});
+    }
     std::fprintf(stderr, "map: %zu features -> %zu segments, bounding box %.0f x %.0f m\n",
                  f.scenario.map_features.size(), f.segments.size(), x1 - x0, y1 - y0);
     f.ok = true;
@@ -140,12 +152,30 @@ void BM_KNearest128(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kQueries);
 }
 
+// Signed distances to the road edge (RoadEdges' grid) as a session asks them (edges flattened to the plane), at
+// points near lanes and anywhere on the map.
+void road_edge_distances(benchmark::State& state, const std::vector<Pose>& queries) {
+  if (!ready(state)) return;
+  const RoadEdges edges = event_map_from_scenario(fixture().scenario).edges;
+  for (auto _ : state) {
+    double sum = 0;
+    for (const Pose& q : queries) sum += edges.signed_distance(q.x, q.y, 0);
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["grid_kB"] = static_cast<double>(edges.bytes()) / 1024;
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(queries.size()));
+}
+void BM_RoadEdgeNearLanes(benchmark::State& state) { road_edge_distances(state, fixture().near_lanes); }
+void BM_RoadEdgeAnywhere(benchmark::State& state) { road_edge_distances(state, fixture().queries); }
+
 BENCHMARK(BM_SegmentMap)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_IndexBuild)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Nearest)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_NearestBruteForce)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_WithinRadius50)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_KNearest128)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RoadEdgeNearLanes)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RoadEdgeAnywhere)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace ss

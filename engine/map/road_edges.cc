@@ -52,16 +52,22 @@ RoadEdges::RoadEdges(std::vector<std::vector<MapPoint>> polylines) {
   if (segments_.empty()) return;
   nx_ = static_cast<int>((max_x - min_x_) / cell_) + 1;
   ny_ = static_cast<int>((max_y - min_y_) / cell_) + 1;
-  cells_.resize(static_cast<size_t>(nx_) * ny_);
-  for (size_t k = 0; k < segments_.size(); ++k) {
-    const Segment& s = segments_[k];
+  // Each segment goes in every cell its bounding box touches: counted first, then placed (compressed rows).
+  auto for_cells = [&](const Segment& s, auto&& f) {
     const int x0 = static_cast<int>((std::min(s.a.x, s.b.x) - min_x_) / cell_);
     const int x1 = static_cast<int>((std::max(s.a.x, s.b.x) - min_x_) / cell_);
     const int y0 = static_cast<int>((std::min(s.a.y, s.b.y) - min_y_) / cell_);
     const int y1 = static_cast<int>((std::max(s.a.y, s.b.y) - min_y_) / cell_);
     for (int cy = y0; cy <= y1; ++cy)
-      for (int cx = x0; cx <= x1; ++cx) cells_[static_cast<size_t>(cy) * nx_ + cx].push_back(static_cast<int>(k));
-  }
+      for (int cx = x0; cx <= x1; ++cx) f(static_cast<size_t>(cy) * nx_ + cx);
+  };
+  cell_begin_.assign(static_cast<size_t>(nx_) * ny_ + 1, 0);
+  for (const Segment& s : segments_) for_cells(s, [&](size_t c) { ++cell_begin_[c + 1]; });
+  for (size_t c = 1; c < cell_begin_.size(); ++c) cell_begin_[c] += cell_begin_[c - 1];
+  cell_segments_.resize(cell_begin_.back());
+  std::vector<int> fill(cell_begin_.begin(), cell_begin_.end() - 1);
+  for (size_t k = 0; k < segments_.size(); ++k)
+    for_cells(segments_[k], [&](size_t c) { cell_segments_[fill[c]++] = static_cast<int>(k); });
 }
 
 RoadEdges RoadEdges::from_scenario(const Scenario& s) {
@@ -93,11 +99,14 @@ double RoadEdges::signed_distance(double x, double y, double z) const {
     // Lowest index among equals, as the official argmin over the segments in map order.
     if (d3 < best || (d3 == best && k < best_seg)) best = d3, best_seg = k, best_2d = std::sqrt(ex * ex + ey * ey), best_t = t;
   };
-  // Rings of cells around the point's cell, until no farther cell can hold a nearer segment: a cell r + 1 rings
-  // out is at least r cells away, and the 3-D distance is never below the plane distance.
-  // Clamped so far-off points (placeholder positions) cannot overflow the cell arithmetic.
+  // Rings of cells around the point's cell, until no farther cell can hold a nearer segment: a segment in no cell
+  // of rings 0..r lies outside their square, at least r cells plus the point's margin inside its own cell away,
+  // and the 3-D distance is never below the plane distance.
+  // Clamped so far-off points (placeholder positions) cannot overflow the cell arithmetic; their margin is 0.
   const int cx = static_cast<int>(std::clamp(std::floor((x - min_x_) / cell_), -1e6, 1e6));
   const int cy = static_cast<int>(std::clamp(std::floor((y - min_y_) / cell_), -1e6, 1e6));
+  const double fx = x - (min_x_ + cx * cell_), fy = y - (min_y_ + cy * cell_);
+  const double margin = std::max(0.0, std::min({fx, cell_ - fx, fy, cell_ - fy}) - 1e-9);  // 1e-9: rounding
   const int gap_x = cx < 0 ? -cx : cx >= nx_ ? cx - nx_ + 1 : 0;
   const int gap_y = cy < 0 ? -cy : cy >= ny_ ? cy - ny_ + 1 : 0;
   const int last_ring = std::max({std::abs(cx), std::abs(cx - nx_ + 1), std::abs(cy), std::abs(cy - ny_ + 1)});
@@ -107,10 +116,11 @@ double RoadEdges::signed_distance(double x, double y, double z) const {
       const int step = (gy == cy - r || gy == cy + r) ? 1 : 2 * r;
       for (int gx = cx - r; gx <= cx + r; gx += std::max(step, 1)) {
         if (gx < 0 || gx >= nx_) continue;
-        for (int k : cells_[static_cast<size_t>(gy) * nx_ + gx]) visit(k);
+        const size_t c = static_cast<size_t>(gy) * nx_ + gx;
+        for (int j = cell_begin_[c]; j < cell_begin_[c + 1]; ++j) visit(cell_segments_[j]);
       }
     }
-    if (best < r * cell_) break;
+    if (best < r * cell_ + margin) break;
   }
   const Segment& s = segments_[best_seg];
   const double n = side(best_seg, x, y);
@@ -130,9 +140,8 @@ double RoadEdges::signed_distance(double x, double y, double z) const {
 }
 
 size_t RoadEdges::bytes() const {
-  size_t b = sizeof(*this) + segments_.capacity() * sizeof(Segment) + cells_.capacity() * sizeof(cells_[0]);
-  for (const auto& c : cells_) b += c.capacity() * sizeof(int);
-  return b;
+  return sizeof(*this) + segments_.capacity() * sizeof(Segment) +
+         (cell_begin_.capacity() + cell_segments_.capacity()) * sizeof(int);
 }
 
 }  // namespace ss

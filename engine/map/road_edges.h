@@ -32,9 +32,10 @@ class RoadEdges {
   double side(int seg, double x, double y) const;  // sign of the point's side of segment `seg`: +1 right, -1 left
 
   std::vector<Segment> segments_;
-  double cell_ = 20.0, min_x_ = 0, min_y_ = 0;
+  double cell_ = 5.0, min_x_ = 0, min_y_ = 0;
   int nx_ = 0, ny_ = 0;
-  std::vector<std::vector<int>> cells_;  // segment indices per cell, ascending
+  std::vector<int> cell_begin_;  // cell c's segments are cell_segments_[cell_begin_[c] .. cell_begin_[c + 1])
+  std::vector<int> cell_segments_;  // ascending within each cell
 };
 
 }  // namespace ss

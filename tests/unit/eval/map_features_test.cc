@@ -66,8 +66,8 @@ TEST(RoadEdge, GridAgreesWithFullScan) {
     polylines.push_back(p);
   }
   const RoadEdges edges(polylines);
-  for (int q = 0; q < 200; ++q) {
-    const double x = -50 + (q * 37 % 500), y = -40 + (q * 53 % 160), z = (q % 7) * 0.5;
+  for (int q = 0; q < 2000; ++q) {  // inside the grid, on cell borders and far outside it
+    const double x = -50 + (q * 37 % 500) + 0.25 * (q % 5), y = -40 + (q * 53 % 160) + 0.5 * (q % 3), z = (q % 7) * 0.5;
     // The magnitude is the plane distance to the segment nearest in 3-D (first among equals): a brute-force scan.
     double best = INFINITY, value = 0;
     for (const auto& p : polylines)
