@@ -7,7 +7,9 @@
 #   bench/server_ab.sh [-r ROUNDS] [-c CLIENTS] [-s STEPS] [-d DENSIFY] LABEL=SERVER_BINARY[:ENV=VALUE] ...
 #
 # e.g. bench/server_ab.sh -r 4 A=/tmp/ab-a/build/server/scenestreamer-server C=build/server/scenestreamer-server
-# An ENV=VALUE after a colon is set for that server only (LD_PRELOAD=..., SCENESTREAMER_KV_PRECISION=fp32).
+# An ENV=VALUE after a colon is set for that server only (LD_PRELOAD=..., SCENESTREAMER_KV_PRECISION=fp32), except
+# LOAD_FLAGS=..., which the load generator gets for that run (LOAD_FLAGS=--no-motion-reject: sessions without reject
+# sampling; one server binary can then be compared with itself).
 # Every server runs with --threads 2, the trained default model and the real val scenarios, as in the README.
 set -eu
 
@@ -56,8 +58,13 @@ while [ "$round" -le "$ROUNDS" ]; do
     label=${spec%%=*}
     rest=${spec#*=}
     bin=${rest%%:*}
-    envs=""
+    envs="" load_flags=""
     [ "$rest" != "$bin" ] && envs=${rest#*:}
+    case " $envs " in
+      *" LOAD_FLAGS="*)
+        load_flags=${envs#*LOAD_FLAGS=}; load_flags=${load_flags%% *}
+        envs=$(echo "$envs" | sed 's/LOAD_FLAGS=[^ ]*//') ;;
+    esac
     # shellcheck disable=SC2086  # envs is a list of NAME=VALUE words
     env $envs "$bin" --host 127.0.0.1 --port "$PORT" --threads 2 --model "$MODEL" --scenario_dir "$SCENARIOS" \
       --metrics_port -1 --log_level warn > "$TMP/server.log" 2>&1 &
@@ -75,7 +82,8 @@ while [ "$round" -le "$ROUNDS" ]; do
     done
     watch_rss "$pid" "$TMP/rss" &
     watcher=$!
-    "$LOAD" --clients "$CLIENTS" --steps "$STEPS" --densify "$DENSIFY" --target "127.0.0.1:$PORT" --json \
+    # shellcheck disable=SC2086  # load_flags is a list of words
+    "$LOAD" --clients "$CLIENTS" --steps "$STEPS" --densify "$DENSIFY" --target "127.0.0.1:$PORT" --json $load_flags \
       > "$TMP/load.json" || true
     kill -TERM "$pid"
     wait "$pid" || true

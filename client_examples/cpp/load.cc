@@ -1,9 +1,11 @@
 // scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] [--densify A]
+//                    [--no-motion-reject]
 // N concurrent clients, each with its own session, each stepping M times as fast as the server answers (the ego
 // keeps its heading and speed). Reports steps per second over the whole run, per-step latency percentiles and
 // errors. --route: each client proposes its session id and sends it as x-session-id metadata on every call, for a
 // session-affine router (deploy/router/); the JSON then lists the ids. --densify A: densify mode, the log's agents
-// topped up with sampled ones to A per session (the speed goals' 64-agent sessions).
+// topped up with sampled ones to A per session (the speed goals' 64-agent sessions). --no-motion-reject: sessions
+// without reject sampling of motion (what it costs a server).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -21,10 +23,10 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   client::Flags flags;
-  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "densify"}, {"json", "route"}, &flags)) {
+  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "densify"}, {"json", "route", "no-motion-reject"}, &flags)) {
     std::fprintf(stderr,
                  "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] "
-                 "[--densify A]\n");
+                 "[--densify A] [--no-motion-reject]\n");
     return 2;
   }
   const int clients = client::flag_int(flags, "clients", 4);
@@ -34,6 +36,7 @@ int main(int argc, char** argv) {
   std::string scenario = client::flag_string(flags, "scenario", "");
   const bool json = flags.switches.count("json") > 0;
   const bool route = flags.switches.count("route") > 0;
+  const bool motion_reject = flags.switches.count("no-motion-reject") == 0;
   if (clients < 1 || steps < 1) return std::fprintf(stderr, "--clients and --steps must be positive\n"), 2;
   if (flags.values.count("densify") && densify < 1) return std::fprintf(stderr, "--densify must be positive\n"), 2;
   auto stub = client::connect(target);
@@ -64,6 +67,7 @@ int main(int argc, char** argv) {
         create.set_mode(pb::MODE_DENSIFY);
         create.set_densify_target(densify);
       }
+      if (!motion_reject) create.mutable_sampling()->set_no_motion_reject(true);
       const std::string key = route ? client::new_session_id() : "";  // the routing key: the proposed id
       create.set_session_id(key);
       pb::CreateSessionResponse session;
@@ -107,7 +111,8 @@ int main(int argc, char** argv) {
   for (int a : last_tick_agents) agents_mean += a;
   if (!last_tick_agents.empty()) agents_mean /= static_cast<double>(last_tick_agents.size());
   if (json) {
-    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"densify", densify}, {"errors", errors.load()},
+    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"densify", densify},
+                                  {"motion_reject", motion_reject}, {"errors", errors.load()},
                                   {"steps_per_second", sps}, {"latency_ms_p50", pct(0.5)},
                                   {"latency_ms_p99", pct(0.99)}, {"agents_last_tick_mean", agents_mean}};
     if (route) out["session_ids"] = session_ids;

@@ -33,9 +33,10 @@ class ClientsTest(ServerTestCase):
                             "--json"], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         out = json.loads(r.stdout)
-        self.assertEqual(set(out), {"clients", "steps", "densify", "errors", "steps_per_second", "latency_ms_p50",
-                                    "latency_ms_p99", "agents_last_tick_mean"})
+        self.assertEqual(set(out), {"clients", "steps", "densify", "motion_reject", "errors", "steps_per_second",
+                                    "latency_ms_p50", "latency_ms_p99", "agents_last_tick_mean"})
         self.assertEqual((out["clients"], out["steps"], out["densify"], out["errors"]), (4, 3, 0, 0))
+        self.assertTrue(out["motion_reject"])
         self.assertGreater(out["steps_per_second"], 0)
         self.assertLessEqual(out["latency_ms_p50"], out["latency_ms_p99"])
         self.assertGreater(out["agents_last_tick_mean"], 0)
@@ -50,6 +51,10 @@ class ClientsTest(ServerTestCase):
         self.assertEqual((dense["densify"], dense["errors"]), (40, 0))
         self.assertGreater(dense["agents_last_tick_mean"], plain["agents_last_tick_mean"])
         self.assertGreaterEqual(dense["agents_last_tick_mean"], 30)
+        # --no-motion-reject: the sessions are created without reject sampling (what it costs a server).
+        r = subprocess.run(args + ["--densify", "40", "--no-motion-reject"], capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertEqual((json.loads(r.stdout)["motion_reject"], json.loads(r.stdout)["errors"]), (False, 0))
         bad = subprocess.run(args + ["--densify", "0"], capture_output=True, text=True, timeout=60)
         self.assertEqual(bad.returncode, 2)
         self.assertIn("--densify must be positive", bad.stderr)
