@@ -23,7 +23,8 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   client::Flags flags;
-  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "densify"}, {"json", "route", "no-motion-reject"}, &flags)) {
+  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "densify"},
+                           {"json", "route", "no-motion-reject"}, &flags)) {
     std::fprintf(stderr,
                  "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] "
                  "[--densify A] [--no-motion-reject]\n");

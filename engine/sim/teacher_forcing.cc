@@ -185,8 +185,8 @@ absl::StatusOr<TeacherForcedExample> build_example(const Scenario& scenario, con
     return a.rank != b.rank ? a.rank < b.rank : a.distance < b.distance;
   });
   // Steps where an agent beyond the cap is inside the region: the scene goes on after the last agent kept, so
-  // that step's end of agents is not the log's answer and has no target. (Training toward an end there taught the
-  // model that scenes stop at the cap: full mode placed 15-40 agents where the log holds 2-130.)
+  // that step's end of agents is not the log's answer and has no target (an end there would teach the model that
+  // scenes stop at the cap).
   std::vector<bool> capped(steps, false);
   for (size_t k = options.max_agents; k < agents.size(); ++k)
     for (int t = agents[k].first; t <= agents[k].last; ++t) capped[t] = true;

@@ -67,7 +67,8 @@ TEST(RoadEdge, GridAgreesWithFullScan) {
   }
   const RoadEdges edges(polylines);
   for (int q = 0; q < 2000; ++q) {  // inside the grid, on cell borders and far outside it
-    const double x = -50 + (q * 37 % 500) + 0.25 * (q % 5), y = -40 + (q * 53 % 160) + 0.5 * (q % 3), z = (q % 7) * 0.5;
+    const double x = -50 + (q * 37 % 500) + 0.25 * (q % 5), y = -40 + (q * 53 % 160) + 0.5 * (q % 3);
+    const double z = (q % 7) * 0.5;
     // The magnitude is the plane distance to the segment nearest in 3-D (first among equals): a brute-force scan.
     double best = INFINITY, value = 0;
     for (const auto& p : polylines)
