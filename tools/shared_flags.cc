@@ -18,7 +18,7 @@ ABSL_FLAG(std::string, sdc, "model",
           "model: the model drives the SDC like every other agent (WOSAC's rule); log: the SDC follows its logged "
           "poses, as an RL client's ego would");
 ABSL_FLAG(double, top_p, ss::SessionOptions{}.top_p, "the model's nucleus sampling of motion tokens, in (0, 1]");
-ABSL_FLAG(double, temperature, ss::SessionOptions{}.temperature, "the model's sampling temperature of every token");
+ABSL_FLAG(double, temperature, ss::SessionOptions{}.temperature, "the model's sampling temperature of motion and light tokens (a new agent's tokens: 1.0)");
 ABSL_FLAG(bool, motion_reject, ss::SessionOptions{}.motion_reject,
           "reject sampling of motion: a sampled control that would run an agent into another, or a vehicle off the "
           "road, is drawn again (--motion-reject=false: the model's draws as they come)");

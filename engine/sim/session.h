@@ -139,8 +139,10 @@ class Session {
   void trim_replay();
   // Drops the newest decoded tokens back to a cache size (and their batches): undoes a rejected sample.
   void undo_to(int cache_size, size_t replay_size);
-  // Samples one new agent after the group's last output `h_last`; returns false when the model (or the cap) ends.
-  bool sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order, int64_t* new_id);
+  // Samples one new agent after the group's last output `h_last`: placed, the group ended (the model's end of
+  // agents, the cap, no free slot or no segment allowed), or dropped (no place free of overlap after the retries).
+  enum class NewAgent { placed, ended, dropped };
+  NewAgent sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order, int64_t* new_id);
   void sample_motions(const Mat& h);  // h: the agents' motion-token outputs, in agent order
   void reject_motion_faults(const std::function<std::span<const float>(size_t)>& row);  // row(i): agent i's logits
   int allocate_slot();

@@ -23,7 +23,7 @@ struct SessionOptions {
   // The defaults suit the trained default model (models/MODEL_CARD.md: a sweep on val scenarios cut collision and
   // offroad rates against 0.95 and 1.0, realism within noise of the best).
   double top_p = 0.8;          // motion tokens (nucleus sampling)
-  double temperature = 0.7;    // every sampled token
+  double temperature = 0.7;    // motion and light tokens (a new agent's: 1.0, session.cc)
   int max_agents = 128;        // the cap on agents alive at once (at most the model's agent slots)
   double roi_radius = 100.0;   // metres around the first controlled agent (else the SDC, else the scenario's focus):
                                // agents beyond it retire, new ones spawn within

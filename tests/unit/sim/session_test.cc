@@ -209,6 +209,12 @@ TEST_F(SessionTest, FullModeGeneratesItsOwnAgents) {
   const StepResult r = s->current();
   ASSERT_GE(r.agents.size(), 1u);
   EXPECT_TRUE(r.agents[0].controlled);
+  // The token sequence begins at the current step, as a training sequence begins where its agents first appear:
+  // no history steps holding the controlled agent alone.
+  for (const DecoderToken& t : s->cache().tokens) {
+    EXPECT_EQ(t.step, r.step) << "a token of an earlier step";
+    if (t.kind == TokenKind::motion && t.object == r.agents[0].id) EXPECT_EQ(t.motion_action, kMotionStart);
+  }
   const int64_t max_log_id = [&] {
     int64_t m = 0;
     for (const Track& t : w().scenario->tracks) m = std::max<int64_t>(m, t.id);
@@ -231,6 +237,25 @@ TEST_F(SessionTest, DensifyReachesItsTarget) {
   o.densify_target = log_agents + 5;
   auto s = start(w(), o);
   EXPECT_EQ(static_cast<int>(s->current().agents.size()), o.densify_target);
+}
+
+TEST_F(SessionTest, DensifyInACrowdedRegionEndsWithoutOverlaps) {
+  // A region too small for the target: agents that find no free place are dropped, and a run of such drops ends
+  // the group, so creation ends with the new agents apart from every other.
+  SessionOptions o;
+  o.mode = SessionMode::densify;
+  o.roi_radius = 12;
+  o.densify_target = 120;
+  auto s = start(w(), o);
+  ASSERT_TRUE(s);
+  const StepResult r = s->current();
+  EXPECT_LT(static_cast<int>(r.agents.size()), o.densify_target);
+  const auto box = [](const AgentView& a) {
+    return Box{{a.state.x, a.state.y, a.state.heading}, a.state.length, a.state.width};
+  };
+  for (size_t i = 0; i < r.agents.size(); ++i)
+    for (size_t j = 0; j < i; ++j)
+      if (r.agents[i].entered) EXPECT_FALSE(boxes_overlap(box(r.agents[i]), box(r.agents[j]))) << i << " and " << j;
 }
 
 TEST_F(SessionTest, InjectSampledAgentsOfATypeNearAPoint) {
