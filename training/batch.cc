@@ -49,8 +49,8 @@ Batch make_batch(const std::vector<const TeacherForcedExample*>& examples) {
   std::vector<float> map_feat, self_feat, cross_feat;
   std::vector<int64_t> kind, light_state, light_slot, map_id, intra, agent_slot, agent_type, motion_action;
   std::vector<float> motion_state, relative_state;
-  std::vector<int64_t> light_rows, light_t, motion_rows, motion_t, type_rows, type_t, end_rows, end_t, state_rows,
-      state_t;
+  std::vector<int64_t> light_rows, light_t, motion_rows, motion_t, type_rows, type_t, end_rows, end_t, end_first,
+      state_rows, state_t;
   int64_t seg_base = 0, tok_base = 0;
   for (const auto* ex : examples) {
     b.map_begin.push_back(seg_base);
@@ -89,6 +89,7 @@ Batch make_batch(const std::vector<const TeacherForcedExample*>& examples) {
       target(ex->motion_target[i], motion_rows, motion_t);
       target(ex->type_target[i], type_rows, type_t);
       target(ex->end_target[i], end_rows, end_t);
+      if (ex->end_target[i] != kNoTarget) end_first.push_back(t.step == 0);
       target(ex->segment_target[i], seg_rows, seg_t);
       if (ex->state_target[i][0] != kNoTarget) {
         state_rows.push_back(row);
@@ -127,6 +128,7 @@ Batch make_batch(const std::vector<const TeacherForcedExample*>& examples) {
   b.motion_rows = ints(motion_rows), b.motion_target = ints(motion_t);
   b.type_rows = ints(type_rows), b.type_target = ints(type_t);
   b.end_rows = ints(end_rows), b.end_target = ints(end_t);
+  b.end_first = ints(end_first).to(torch::kBool);
   b.state_rows = ints(state_rows), b.state_target = ints(state_t).view({-1, kRsFields});
   return b;
 }

@@ -38,6 +38,8 @@ struct Batch {
   torch::Tensor motion_rows, motion_target;
   torch::Tensor type_rows, type_target;
   torch::Tensor end_rows, end_target;
+  torch::Tensor end_first;                      // bool, per end target: at its sequence's first step (the scene's
+                                                // placement; later steps ask only whether a new agent enters)
   std::vector<torch::Tensor> segment_rows, segment_target;  // per example (target: index in its own map)
   torch::Tensor state_rows, state_target;       // MS rows; [rows, 8]
 

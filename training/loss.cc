@@ -6,7 +6,7 @@ bool stage_trains(Stage s, const std::string& head) {
   return s == Stage::all_heads || head == "motion" || head == "light";
 }
 
-Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage) {
+Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double scene_end_weight) {
   Loss out;
   out.total = torch::zeros({});
   auto head = [&](const std::string& name, const torch::Tensor& l, const torch::Tensor& target) {
@@ -27,7 +27,29 @@ Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage) {
   head("light", logits.light, b.light_target);
   head("motion", logits.motion, b.motion_target);
   head("type", logits.type, b.type_target);
-  head("end", logits.end, b.end_target);
+  // The end head: its targets at a sequence's first step say how full a scene is; the rest mostly say that no new
+  // agent enters (their count is known from the step before), so they can be weighted up.
+  {
+    HeadStat st, first;
+    st.count = b.end_target.numel();
+    if (st.count > 0) {
+      const torch::Tensor ce = torch::nn::functional::cross_entropy(
+          logits.end, b.end_target, torch::nn::functional::CrossEntropyFuncOptions().reduction(torch::kNone));
+      const torch::Tensor right = logits.end.detach().argmax(-1) == b.end_target;
+      const torch::Tensor w = torch::where(b.end_first, torch::full({}, scene_end_weight), torch::ones({}));
+      const torch::Tensor loss = (ce * w).sum() / w.sum();
+      st.loss = ce.detach().mean().item<double>();
+      st.accuracy = right.to(torch::kFloat64).mean().item<double>();
+      first.count = b.end_first.sum().item<int64_t>();
+      if (first.count > 0) {
+        first.loss = ce.detach().index({b.end_first}).mean().item<double>();
+        first.accuracy = right.index({b.end_first}).to(torch::kFloat64).mean().item<double>();
+      }
+      if (stage_trains(stage, "end")) out.total = out.total + loss;
+    }
+    out.heads["end"] = st;
+    out.heads["end0"] = first;
+  }
   head("state", logits.state, b.state_target);
   // Pointer logits differ in width per example (each map's size): cross-entropy per example, averaged over targets.
   HeadStat seg;

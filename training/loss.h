@@ -22,12 +22,14 @@ struct HeadStat {
 
 struct Loss {
   torch::Tensor total;                    // what backward() runs on
-  std::map<std::string, HeadStat> heads;  // light, motion, type, segment, state, end
+  std::map<std::string, HeadStat> heads;  // light, motion, type, segment, state, end, end0 (end at the first step)
 };
 
 // The heads a stage trains.
 bool stage_trains(Stage s, const std::string& head);
 
-Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage);
+// scene_end_weight: the weight of the end-of-agents targets at a sequence's first step in the end head's mean (the
+// others weigh 1). The "end0" stat is those targets alone, for the logs (not in the total).
+Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double scene_end_weight = 1.0);
 
 }  // namespace ss::train

@@ -32,6 +32,8 @@ std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
 const char* kHeads[] = {"light", "motion", "type", "end", "segment", "state"};
+// What the logs show: the heads, and the end head at each sequence's first step alone (part of "end").
+const char* kLogged[] = {"light", "motion", "type", "end", "segment", "state", "end0"};
 
 struct RunState {
   int64_t step = 0;
@@ -131,13 +133,13 @@ struct StatSum {
 
 std::string csv_header() {
   std::string h = "step,elapsed_s,lr,stage,tokens_per_s,loss";
-  for (const char* n : kHeads) absl::StrAppend(&h, ",", n, "_loss,", n, "_acc");
+  for (const char* n : kLogged) absl::StrAppend(&h, ",", n, "_loss,", n, "_acc");
   return h + "\n";
 }
 
 std::string csv_row(int64_t step, double elapsed, double lr, int stage, double tps, double total, const StatSum& s) {
   std::string r = absl::StrFormat("%d,%.1f,%.6g,%d,%.1f,%.5f", step, elapsed, lr, stage, tps, total);
-  for (const char* n : kHeads) {
+  for (const char* n : kLogged) {
     const HeadStat h = s.mean(n);
     absl::StrAppendFormat(&r, ",%.5f,%.4f", h.loss, h.accuracy);
   }
@@ -162,6 +164,8 @@ absl::Status run_training(const TrainOptions& o) {
     return absl::InvalidArgumentError("--batch, --steps, --warmup, --lr and --threads must be positive");
   if (o.real_fraction < 0 || o.real_fraction > 1) return absl::InvalidArgumentError("--real-fraction must be in [0, 1]");
   if (o.catk_top_k < 0) return absl::InvalidArgumentError(absl::StrCat("--catk ", o.catk_top_k, " must be 0 (off) or positive"));
+  if (!(o.scene_end_weight > 0) || !std::isfinite(o.scene_end_weight))
+    return absl::InvalidArgumentError(absl::StrCat("--scene-end-weight ", o.scene_end_weight, " must be positive"));
   torch::set_num_threads(o.threads);
   at::globalContext().setFlushDenormal(true);
 
@@ -296,7 +300,7 @@ absl::Status run_training(const TrainOptions& o) {
     const double lr = learning_rate(o, st.step);
     for (auto& group : opt.param_groups()) static_cast<torch::optim::AdamWOptions&>(group.options()).lr(lr);
     opt.zero_grad();
-    const Loss loss = compute_loss(model.heads(b, model.forward(b)), b, stage);
+    const Loss loss = compute_loss(model.heads(b, model.forward(b)), b, stage, o.scene_end_weight);
     loss.total.backward();
     torch::nn::utils::clip_grad_norm_(model.parameters(), o.clip);
     opt.step();
@@ -314,7 +318,7 @@ absl::Status run_training(const TrainOptions& o) {
       const double per_step = window_seconds / window_steps;
       std::string line = absl::StrFormat("step %d/%d stage %d lr %.2e loss %.3f", st.step, o.steps, static_cast<int>(stage),
                                          lr, window_loss / window_steps);
-      for (const char* n : kHeads) absl::StrAppendFormat(&line, " %s %.3f", n, window.mean(n).loss);
+      for (const char* n : kLogged) absl::StrAppendFormat(&line, " %s %.3f", n, window.mean(n).loss);
       absl::StrAppendFormat(&line, " | %.0f tokens/s, %.2f s/step, ETA %.1f h", tps, per_step,
                             per_step * (o.steps - st.step) / 3600);
       std::printf("%s\n", line.c_str());
@@ -330,9 +334,11 @@ absl::Status run_training(const TrainOptions& o) {
       double total = 0;
       for (const char* n : kHeads) total += v.mean(n).loss;
       append_line(dir / "val_log.csv", csv_header(), csv_row(st.step, st.elapsed, lr, static_cast<int>(stage), 0, total, v));
-      std::printf("val step %d: motion %.3f (acc %.3f) light %.3f type %.3f end %.3f segment %.3f state %.3f\n",
+      std::printf("val step %d: motion %.3f (acc %.3f) light %.3f type %.3f end %.3f (first step %.3f) segment %.3f "
+                  "state %.3f\n",
                   static_cast<int>(st.step), v.mean("motion").loss, v.mean("motion").accuracy, v.mean("light").loss,
-                  v.mean("type").loss, v.mean("end").loss, v.mean("segment").loss, v.mean("state").loss);
+                  v.mean("type").loss, v.mean("end").loss, v.mean("end0").loss, v.mean("segment").loss,
+                  v.mean("state").loss);
     }
     const bool time_due = std::chrono::duration<double>(Clock::now() - last_checkpoint).count() > 300;
     if (st.step % o.checkpoint_every == 0 || time_due)

@@ -40,6 +40,7 @@ struct TrainOptions {
   int64_t stop_after = 0;               // stop (with a checkpoint) after this many steps in this process; 0: no limit
   std::string init_from;                // a fresh run (step 0, new optimizer) starting from this checkpoint's weights
   int catk_top_k = 0;                   // > 0: CAT-K closed-loop fine-tuning (closed_loop_example) with this K
+  double scene_end_weight = 1.0;        // weight of the end-of-agents targets at a sequence's first step (loss.h)
 };
 
 absl::Status run_training(const TrainOptions& options);

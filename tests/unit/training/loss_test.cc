@@ -1,0 +1,56 @@
+// The training loss's end-of-agents term: its targets at a sequence's first step (the scene's placement) reported
+// alone as "end0", and weighted by scene_end_weight in the end head's mean.
+#include <gtest/gtest.h>
+
+#include "engine/scenario/read.h"
+#include "engine/sim/teacher_forcing.h"
+#include "training/batch.h"
+#include "training/loss.h"
+#include "training/model.h"
+
+namespace ss::train {
+namespace {
+
+TEST(Loss, SceneEndTargetsAreReportedAloneAndWeighted) {
+  ModelConfig c = *model_config_by_name("small");
+  c.d_model = 32;
+  c.decoder_layers = 1;
+  c.encoder_layers = 1;
+  torch::manual_seed(1);
+  TorchModel model(init_weights(c, 1));
+  auto s = read_scenarios(std::string(SS_DATA_DIR) + "/womd/tfrecord/motion_data_one_scenario.tfrecord");
+  ASSERT_TRUE(s.ok()) << s.status();
+  TeacherForcingOptions o;
+  o.max_agents = 8;
+  o.max_map_segments = 300;
+  auto ex = teacher_forced_example((*s)[0], c, o);
+  ASSERT_TRUE(ex.ok()) << ex.status();
+  int first = 0, all = 0;
+  for (size_t i = 0; i < ex->tokens.size(); ++i) {
+    if (ex->end_target[i] == kNoTarget) continue;
+    ++all;
+    first += ex->tokens[i].step == 0;
+  }
+  ASSERT_GT(first, 1);
+  ASSERT_GT(all, first);
+
+  const Batch b = make_batch({&*ex});
+  torch::NoGradGuard no_grad;
+  const HeadLogits logits = model.heads(b, model.forward(b));
+  const Loss plain = compute_loss(logits, b, Stage::all_heads);
+  EXPECT_EQ(plain.heads.at("end").count, all);
+  EXPECT_EQ(plain.heads.at("end0").count, first);
+  // Weighting changes the total by the end term alone, and only in how the two kinds of target are averaged.
+  const double w = 5;
+  const Loss weighted = compute_loss(logits, b, Stage::all_heads, w);
+  const double sum_first = plain.heads.at("end0").loss * first;
+  const double sum_all = plain.heads.at("end").loss * all;
+  const double expected = (sum_all - sum_first + w * sum_first) / (all - first + w * first);
+  EXPECT_NEAR(weighted.total.item<double>() - plain.total.item<double>(), expected - plain.heads.at("end").loss, 1e-5);
+  EXPECT_NE(plain.heads.at("end0").loss, plain.heads.at("end").loss);
+  // The reported stats stay unweighted.
+  EXPECT_DOUBLE_EQ(weighted.heads.at("end").loss, plain.heads.at("end").loss);
+}
+
+}  // namespace
+}  // namespace ss::train
