@@ -91,7 +91,7 @@ grep -q "frame 3/90" "$tmp/a.svg"
 if [ -n "${SS_TRAIN:-}" ]; then
   help "$SS_TRAIN" -- config data synthetic val out resume real-fraction steps stage1-steps batch lr warmup \
     weight-decay clip max-agents max-map-segments seed threads log-every val-every val-scenarios checkpoint-every \
-    eval-every eval-tool eval-scenarios stop-after init-from catk
+    eval-every eval-tool eval-scenarios stop-after init-from catk scene-end-weight
   help "$SS_TRAIN" export -- checkpoint out
   help "$SS_TRAIN" plot -- run out
   refused "unknown flag --checkpoint" "$SS_TRAIN" --checkpoint x --out "$tmp/run"
