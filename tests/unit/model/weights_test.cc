@@ -13,6 +13,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "nlohmann/json.hpp"
 
@@ -37,8 +38,9 @@ const std::string& small_file() {
   return *bytes;
 }
 
+// Unique per test process: ctest runs each test in its own process, several at once, in one temp directory.
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
+  return (std::filesystem::path(::testing::TempDir()) / (std::to_string(::getpid()) + "_" + name)).string();
 }
 
 // A file split into its header (parsed) and data section, to corrupt one and put the file back together.

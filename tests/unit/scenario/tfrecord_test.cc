@@ -7,14 +7,16 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 namespace ss {
 namespace {
 
 using ::testing::HasSubstr;
 
+// Unique per test process: ctest runs each test in its own process, several at once, in one temp directory.
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::path(::testing::TempDir()) / name).string();
+  return (std::filesystem::path(::testing::TempDir()) / (std::to_string(::getpid()) + "_" + name)).string();
 }
 
 void write_raw(const std::string& path, const std::string& bytes) {
