@@ -9,6 +9,7 @@
 #include <fstream>
 #include <future>
 #include <numbers>
+#include <span>
 
 #include <torch/torch.h>
 
@@ -31,9 +32,9 @@ using Clock = std::chrono::steady_clock;
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
-const char* kHeads[] = {"light", "motion", "type", "end", "segment", "state"};
-// What the logs show: the heads, and the end head at each sequence's first step alone (part of "end").
+// What the logs show: every head, then the end head at each sequence's first step alone (part of "end").
 const char* kLogged[] = {"light", "motion", "type", "end", "segment", "state", "end0"};
+const std::span<const char* const> kHeads(kLogged, 6);  // the heads whose losses the total sums
 
 struct RunState {
   int64_t step = 0;

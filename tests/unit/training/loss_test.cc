@@ -2,8 +2,7 @@
 // alone as "end0", and weighted by scene_end_weight in the end head's mean.
 #include <gtest/gtest.h>
 
-#include "engine/scenario/read.h"
-#include "engine/sim/teacher_forcing.h"
+#include "tests/unit/training/training_fixture.h"
 #include "training/batch.h"
 #include "training/loss.h"
 #include "training/model.h"
@@ -12,29 +11,21 @@ namespace ss::train {
 namespace {
 
 TEST(Loss, SceneEndTargetsAreReportedAloneAndWeighted) {
-  ModelConfig c = *model_config_by_name("small");
-  c.d_model = 32;
-  c.decoder_layers = 1;
-  c.encoder_layers = 1;
+  const ModelConfig c = testing::tiny_config(1);
   torch::manual_seed(1);
   TorchModel model(init_weights(c, 1));
-  auto s = read_scenarios(std::string(SS_DATA_DIR) + "/womd/tfrecord/motion_data_one_scenario.tfrecord");
-  ASSERT_TRUE(s.ok()) << s.status();
-  TeacherForcingOptions o;
-  o.max_agents = 8;
-  o.max_map_segments = 300;
-  auto ex = teacher_forced_example((*s)[0], c, o);
-  ASSERT_TRUE(ex.ok()) << ex.status();
+  TeacherForcedExample ex;
+  ASSERT_NO_FATAL_FAILURE(testing::small_example(testing::kRealTfRecord, c, &ex));
   int first = 0, all = 0;
-  for (size_t i = 0; i < ex->tokens.size(); ++i) {
-    if (ex->end_target[i] == kNoTarget) continue;
+  for (size_t i = 0; i < ex.tokens.size(); ++i) {
+    if (ex.end_target[i] == kNoTarget) continue;
     ++all;
-    first += ex->tokens[i].step == 0;
+    first += ex.tokens[i].step == 0;
   }
   ASSERT_GT(first, 1);
   ASSERT_GT(all, first);
 
-  const Batch b = make_batch({&*ex});
+  const Batch b = make_batch({&ex});
   torch::NoGradGuard no_grad;
   const HeadLogits logits = model.heads(b, model.forward(b));
   const Loss plain = compute_loss(logits, b, Stage::all_heads);

@@ -9,6 +9,7 @@
 
 #include "engine/scenario/read.h"
 #include "engine/sim/teacher_forcing.h"
+#include "tests/unit/training/training_fixture.h"
 #include "training/batch.h"
 #include "training/loss.h"
 #include "training/model.h"
@@ -29,24 +30,13 @@ std::vector<std::string> val_files(int n) {
 }
 
 TEST(TrainRun, LossFallsOnAFewRealScenarios) {
-  ModelConfig c = *model_config_by_name("small");
-  c.d_model = 32;
-  c.decoder_layers = 2;
-  c.encoder_layers = 1;
+  const ModelConfig c = testing::tiny_config(2);
   torch::manual_seed(1);
   TorchModel model(init_weights(c, 1));
-  std::vector<TeacherForcedExample> examples;
   // The real TFRecord has lights; the JSON file adds a second map.
-  for (const std::string& f : {std::string(SS_DATA_DIR) + "/womd/tfrecord/motion_data_one_scenario.tfrecord", val_files(1)[0]}) {
-    auto s = read_scenarios(f);
-    ASSERT_TRUE(s.ok()) << s.status();
-    TeacherForcingOptions o;
-    o.max_agents = 8;
-    o.max_map_segments = 300;
-    auto ex = teacher_forced_example((*s)[0], c, o);
-    ASSERT_TRUE(ex.ok()) << ex.status();
-    examples.push_back(std::move(*ex));
-  }
+  std::vector<TeacherForcedExample> examples(2);
+  ASSERT_NO_FATAL_FAILURE(testing::small_example(testing::kRealTfRecord, c, &examples[0]));
+  ASSERT_NO_FATAL_FAILURE(testing::small_example(val_files(1)[0], c, &examples[1]));
   const Batch b = make_batch({&examples[0], &examples[1]});
   torch::optim::AdamW opt(model.parameters(), torch::optim::AdamWOptions(3e-3));
   double first = 0, last = 0;
