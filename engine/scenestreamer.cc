@@ -117,6 +117,9 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
 const std::vector<EngineScenario>& engine_scenarios(const Engine& engine) { return engine.listing; }
 const std::string& engine_model_name(const Engine& engine) { return engine.model->config().name; }
 const char* engine_kv_precision(const Engine& engine) { return kv_precision_name(engine.model->kv_precision()); }
+const char* engine_matmul_precision(const Engine& engine) {
+  return matmul_precision_name(engine.model->matmul_precision());
+}
 bool engine_random_weights(const Engine& engine) { return engine.random_weights; }
 int engine_map_encodes(const Engine& engine) { return engine.maps->encodes(); }
 

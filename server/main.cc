@@ -135,8 +135,9 @@ int main(int argc, char** argv) {
     spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise). Pass --model FILE or "
                  "put a .safetensors file in models/ !!!", eo.random_config);
   else
-    spdlog::info("model {} (config {}, {} keys and values, {} threads per step)", eo.model_path,
-                 ss::engine_model_name(**engine), ss::engine_kv_precision(**engine), eo.step_threads);
+    spdlog::info("model {} (config {}, {} keys and values, {} products, {} threads per step)", eo.model_path,
+                 ss::engine_model_name(**engine), ss::engine_kv_precision(**engine),
+                 ss::engine_matmul_precision(**engine), eo.step_threads);
   spdlog::info("{} scenarios from {}", ss::engine_scenarios(**engine).size(), scenario_dir);
 
   ss::server::Metrics metrics;

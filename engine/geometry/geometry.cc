@@ -50,7 +50,7 @@ double average_corner_error(const Box& a, const Box& b) {
 bool boxes_overlap(const Box& a, const Box& b) {
   // Farther apart than their half diagonals: disjoint, without the corners' trigonometry (the common case).
   const double dx = a.pose.x - b.pose.x, dy = a.pose.y - b.pose.y;
-  const double reach = (std::hypot(a.length, a.width) + std::hypot(b.length, b.width)) / 2;
+  const double reach = (norm({a.length, a.width}) + norm({b.length, b.width})) / 2;  // not hypot: a hot path, 3x slower
   if (dx * dx + dy * dy > reach * reach) return false;
   auto ca = box_corners(a), cb = box_corners(b);
   const std::array<Vec2, 4>* boxes[2] = {&ca, &cb};

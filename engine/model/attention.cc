@@ -5,6 +5,7 @@
 #include <map>
 
 #include "engine/model/attention_kernels.h"
+#include "engine/model/matmul_bf16.h"
 
 namespace ss {
 
@@ -112,7 +113,7 @@ namespace {
 
 // A thread's scratch for the groups it runs.
 struct GroupScratch {
-  Mat kg, vg, s, og, ug, rg, scores;
+  Mat kg, vg, s, og, ug, rg, scores, qh;
   TableTerms table;
 };
 
@@ -179,16 +180,28 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     }
     const MatMap kk = identity ? MatMap(kv.k, m, d) : MatMap(t.kg.data(), m, d);
     const MatMap vv = identity ? MatMap(kv.v, m, d) : MatMap(t.vg.data(), m, d);
+    const bool bf16 = identity && kv.k_bf16;  // the whole map's keys and values are in bf16 tiles too
     for (int h = 0; h < heads; ++h) {
       // Scores, queries down and keys across: g x m.
-      t.s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();
+      if (bf16) {
+        t.qh = q(rows, Eigen::seqN(h * dh, dh));
+        t.s.resize(g, m);
+        bf16_linear(t.qh.data(), g, kv.k_bf16[h], t.s.data());
+      } else {
+        t.s.noalias() = q(rows, Eigen::seqN(h * dh, dh)) * kk.middleCols(h * dh, dh).transpose();
+      }
       t.ug = u(rows, Eigen::seqN(h * r, r));  // g x r
       if (!set->uniform) {
         t.s.leftCols(mp).noalias() += t.ug * set->relation;
         if (mp < m) t.table.add_scores(*set, t.ug.data(), g, r, t.s.data(), m);
       }
       kernel_softmax_rows(t.s.data(), g, m, m, scale);
-      t.og.noalias() = t.s * vv.middleCols(h * dh, dh);  // g x dh
+      if (bf16) {
+        t.og.resize(g, dh);
+        bf16_linear(t.s.data(), g, kv.v_bf16[h], t.og.data());
+      } else {
+        t.og.noalias() = t.s * vv.middleCols(h * dh, dh);  // g x dh
+      }
       for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = t.og.row(c);
       if (set->uniform) {
         t.rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one

@@ -84,6 +84,9 @@ struct KeyValueRows {
   const float *k = nullptr, *v = nullptr;        // float storage
   const uint16_t *kh = nullptr, *vh = nullptr;   // half storage (when k is null)
   int rows = 0, d = 0;
+  // Optional, with float storage: per head, the keys (rows x dh) and the values transposed (dh x rows) in bf16
+  // tiles. Queries that read every row together then run their two products in bf16 on AMX.
+  const Bf16Weight *k_bf16 = nullptr, *v_bf16 = nullptr;
 
   KeyValueRows() = default;
   KeyValueRows(const MatMap& keys, const MatMap& values)

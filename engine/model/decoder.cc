@@ -234,15 +234,18 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
 
   for (int l = 0; l < c.decoder_layers; ++l) {
     const DecoderLayerParams& L = decoder_layers_[l];
-    const MatMap map_keys(map.cross_keys[l].data(), map.size(), c.d_model);
-    const MatMap map_values(map.cross_values[l].data(), map.size(), c.d_model);
+    KeyValueRows map_keys(MatMap(map.cross_keys[l].data(), map.size(), c.d_model),
+                          MatMap(map.cross_values[l].data(), map.size(), c.d_model));
+    if (!map.cross_keys_bf16.empty()) {
+      map_keys.k_bf16 = &map.cross_keys_bf16[static_cast<size_t>(l) * c.heads];
+      map_keys.v_bf16 = &map.cross_values_bf16[static_cast<size_t>(l) * c.heads];
+    }
     if (l > 0 || static_cast<int>(computed.size()) == n) {
-      x += relative_attention(layer_norm(x, L.cross_norm), L.cross, c.heads, map_keys, map_values, cross.per_query,
-                              pool_.get());
+      x += relative_attention(layer_norm(x, L.cross_norm), L.cross, c.heads, map_keys, cross.per_query, pool_.get());
     } else if (!computed.empty()) {
       const Mat xc = layer_norm(x(computed, Eigen::all), L.cross_norm);
       x(computed, Eigen::all) +=
-          relative_attention(xc, L.cross, c.heads, map_keys, map_values, cross_computed, pool_.get());
+          relative_attention(xc, L.cross, c.heads, map_keys, cross_computed, pool_.get());
     }
     const Mat xs = layer_norm(x, L.self_norm);
     const Mat k = linear(xs, L.self.key), v = linear(xs, L.self.value);

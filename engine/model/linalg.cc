@@ -1,5 +1,7 @@
 #include "engine/model/linalg.h"
 
+#include "engine/model/matmul_bf16.h"
+
 #include <xmmintrin.h>
 
 #include <algorithm>
@@ -8,7 +10,13 @@
 namespace ss {
 
 Mat linear(const Mat& x, const LinearParams& p) {
-  Mat y = x * p.w().transpose();
+  Mat y;
+  if (p.bf16) {
+    y.resize(x.rows(), p.out);
+    bf16_linear(x.data(), static_cast<int>(x.rows()), *p.bf16, y.data());
+  } else {
+    y = x * p.w().transpose();
+  }
   if (p.bias) y.rowwise() += VecMap(p.bias, p.out);
   return y;
 }

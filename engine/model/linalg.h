@@ -7,6 +7,8 @@
 
 namespace ss {
 
+struct Bf16Weight;
+
 using Mat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using Vec = Eigen::Matrix<float, 1, Eigen::Dynamic, Eigen::RowMajor>;
 using MatMap = Eigen::Map<const Mat>;
@@ -18,6 +20,7 @@ struct LinearParams {
   const float* weight = nullptr;  // [out, in]
   const float* bias = nullptr;    // [out], or null
   int out = 0, in = 0;
+  const Bf16Weight* bf16 = nullptr;  // W in bf16 AMX tiles when the model runs its products in bf16, else null
 
   MatMap w() const { return MatMap(weight, out, in); }
 };
@@ -28,7 +31,7 @@ struct NormParams {
   int dim = 0;
 };
 
-// y = x W^T + b
+// y = x W^T + b (in bf16 on AMX tiles when p.bf16 is set: engine/model/matmul_bf16.h)
 Mat linear(const Mat& x, const LinearParams& p);
 // Row-wise LayerNorm with affine parameters.
 Mat layer_norm(const Mat& x, const NormParams& p);

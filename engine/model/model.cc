@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "engine/model/key_select.h"
+#include "engine/model/matmul_bf16.h"
 
 namespace ss {
 
@@ -20,7 +21,24 @@ absl::StatusOr<KvPrecision> kv_precision_from_env() {
   return p;
 }
 
+// SCENESTREAMER_MATMUL_PRECISION, else bf16 where the CPU has AMX-BF16, else fp32.
+absl::StatusOr<MatmulPrecision> matmul_precision_from_env() {
+  const char* env = std::getenv("SCENESTREAMER_MATMUL_PRECISION");
+  if (env == nullptr || *env == 0) return bf16_products_available() ? MatmulPrecision::bf16 : MatmulPrecision::fp32;
+  auto p = matmul_precision_by_name(env);
+  if (!p.ok()) return absl::InvalidArgumentError(absl::StrCat("SCENESTREAMER_MATMUL_PRECISION: ", p.status().message()));
+  return p;
+}
+
 }  // namespace
+
+absl::StatusOr<MatmulPrecision> matmul_precision_by_name(const std::string& name) {
+  if (name == "fp32") return MatmulPrecision::fp32;
+  if (name == "bf16") return MatmulPrecision::bf16;
+  return absl::InvalidArgumentError(absl::StrCat("unknown matmul precision '", name, "' (use fp32 or bf16)"));
+}
+
+const char* matmul_precision_name(MatmulPrecision p) { return p == MatmulPrecision::bf16 ? "bf16" : "fp32"; }
 
 absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name) {
   if (name == "fp32") return KvPrecision::fp32;
@@ -107,16 +125,29 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, Mode
     if (!p.ok()) return p.status();
     options.kv_precision = *p;
   }
+  if (!options.matmul_precision) {
+    auto p = matmul_precision_from_env();
+    if (!p.ok()) return p.status();
+    options.matmul_precision = *p;
+  }
+  if (*options.matmul_precision == MatmulPrecision::bf16 && !bf16_products_available())
+    return absl::FailedPreconditionError(
+        "matmul precision bf16 needs a CPU with AMX-BF16 and AVX512-BF16 (and a Linux kernel that grants the tile "
+        "state); this one has not: use fp32");
   return std::shared_ptr<const Model>(new Model(std::move(weights), options));
 }
 
-LinearParams Model::lin(const std::string& name, bool bias) const {
+LinearParams Model::lin(const std::string& name, bool bias) {
   const Tensor& w = weights_.at(name + ".weight");
   LinearParams p;
   p.weight = w.data.data();
   p.out = static_cast<int>(w.shape[0]);
   p.in = static_cast<int>(w.shape[1]);
   if (bias) p.bias = weights_.at(name + ".bias").data.data();
+  if (matmul_precision() == MatmulPrecision::bf16 && bf16_packable(p.out, p.in)) {
+    bf16_weights_.push_back(std::make_unique<const Bf16Weight>(bf16_pack(p.weight, p.out, p.in)));
+    p.bf16 = bf16_weights_.back().get();
+  }
   return p;
 }
 
@@ -125,12 +156,12 @@ NormParams Model::norm(const std::string& name) const {
   return {w.data.data(), weights_.at(name + ".bias").data.data(), static_cast<int>(w.shape[0])};
 }
 
-AttentionParams Model::attn(const std::string& name) const {
+AttentionParams Model::attn(const std::string& name) {
   return {lin(name + ".query"),     lin(name + ".key"),     lin(name + ".value"),    lin(name + ".output"),
           lin(name + ".rel_query"), lin(name + ".rel_key"), lin(name + ".rel_value")};
 }
 
-MlpHeadParams Model::mlp_head(const std::string& name) const {
+MlpHeadParams Model::mlp_head(const std::string& name) {
   return {norm(name + ".norm1"), norm(name + ".norm2"), lin(name + ".fc1", false), lin(name + ".fc2")};
 }
 
@@ -139,6 +170,8 @@ size_t MapContext::bytes() const {
   for (const Mat& m : cross_keys) b += m.size();
   for (const Mat& m : cross_values) b += m.size();
   b *= sizeof(float);
+  for (const auto* tiles : {&cross_keys_bf16, &cross_values_bf16})
+    for (const Bf16Weight& w : *tiles) b += w.tiles.size() * sizeof(uint16_t);
   for (const MapSegment& s : segments) b += sizeof(MapSegment) + s.points.capacity() * sizeof(MapPoint);
   return b;
 }
@@ -203,9 +236,15 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
     x += linear(f, L.ffn2);
   }
   map->tokens = layer_norm(x, encoder_final_norm_) + MatMap(map_id_embedding_, m, c.d_model);
+  const int dh = c.d_model / c.heads;
   for (const DecoderLayerParams& L : decoder_layers_) {
     map->cross_keys.push_back(linear(map->tokens, L.cross.key));
     map->cross_values.push_back(linear(map->tokens, L.cross.value));
+    if (matmul_precision() != MatmulPrecision::bf16) continue;
+    for (int h = 0; h < c.heads; ++h) {
+      map->cross_keys_bf16.push_back(bf16_pack(map->cross_keys.back().data() + h * dh, m, dh, c.d_model, 1));
+      map->cross_values_bf16.push_back(bf16_pack(map->cross_values.back().data() + h * dh, dh, m, 1, c.d_model));
+    }
   }
   map->pointer_keys = linear(map->tokens, pointer_key_);
   for (const MapSegment& seg : map->segments) map->anchors.emplace_back(true, seg.pose, 0);

@@ -15,6 +15,7 @@
 #include "engine/model/kv_cache.h"
 #include "engine/model/linalg.h"
 #include "engine/model/mask.h"
+#include "engine/model/matmul_bf16.h"
 #include "engine/model/token.h"
 #include "engine/model/weights.h"
 
@@ -27,6 +28,9 @@ struct MapContext {
   SegmentIndex index;
   Mat tokens;                        // M x d: encoder output + map-id embedding
   std::vector<Mat> cross_keys, cross_values;  // per decoder layer, M x d
+  // With bf16 products, per decoder layer and head ([layer * heads + h]): the keys (M x dh) and the values
+  // transposed (dh x M) in bf16 tiles, for the queries that read the whole map together. Empty in fp32.
+  std::vector<Bf16Weight> cross_keys_bf16, cross_values_bf16;
   Mat pointer_keys;                  // M x d: head.map_segment.key applied to the tokens
   std::vector<Anchor> anchors;       // each segment's pose as a relation anchor (step 0)
 
@@ -58,12 +62,21 @@ struct RsBlockParams {
   LinearParams ffn1, ffn2;
 };
 
-// How the model runs (not what it computes): the KV caches' storage.
+// The dense products (every Linear layer over the model width, heads included): fp32 (Eigen), or bf16 on AMX tiles,
+// weights and inputs rounded to bf16 and every sum in fp32 (engine/model/matmul_bf16.h; CPUs with AMX-BF16 only).
+// Keeping the heads in fp32 was tried: the logits' difference from fp32 stayed the same (0.091 against 0.096), since
+// it comes from the hidden states.
+enum class MatmulPrecision : uint8_t { fp32, bf16 };
+
+// How the model runs: the KV caches' storage, the dense products' precision, threads.
 struct ModelOptions {
   // fp16 (the default) halves a session's keys and values and the bytes its attention gathers; the math stays fp32
   // (realism unchanged within its interval at K = 32: README). Unset: SCENESTREAMER_KV_PRECISION (fp32 or fp16), else
   // fp16, resolved by Model::create, so every program that loads a model (server, tools) can choose without a flag.
   std::optional<KvPrecision> kv_precision;
+  // Unset: SCENESTREAMER_MATMUL_PRECISION (fp32 or bf16), else bf16 where the CPU has AMX-BF16 (realism unchanged
+  // within its interval: README, Speed), else fp32. bf16 asked for on a CPU without AMX-BF16 is an error.
+  std::optional<MatmulPrecision> matmul_precision;
   // Threads one decode call may use: its attention's groups of queries are shared out (the same bits at any count).
   // 1: the calling thread alone. For a lone session's latency; a server busy with many sessions gains nothing.
   int step_threads = 1;
@@ -71,6 +84,9 @@ struct ModelOptions {
 // "fp32" / "fp16"; INVALID_ARGUMENT otherwise.
 absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name);
 const char* kv_precision_name(KvPrecision p);
+// "fp32" / "bf16"; INVALID_ARGUMENT otherwise.
+absl::StatusOr<MatmulPrecision> matmul_precision_by_name(const std::string& name);
+const char* matmul_precision_name(MatmulPrecision p);
 
 // The relative-state head's state while one agent's fields are sampled (Model::rs_begin, rs_next).
 struct RsHead {
@@ -85,6 +101,7 @@ class Model {
 
   const ModelConfig& config() const { return weights_.config; }
   KvPrecision kv_precision() const { return *options_.kv_precision; }
+  MatmulPrecision matmul_precision() const { return *options_.matmul_precision; }
   int step_threads() const { return pool_ ? pool_->threads() : 1; }
   const Weights& weights() const { return weights_; }
 
@@ -124,10 +141,11 @@ class Model {
 
  private:
   Model(Weights w, ModelOptions options);
-  LinearParams lin(const std::string& name, bool bias = true) const;
+  // Construction only: lin packs the weight in bf16 when the products run in bf16.
+  LinearParams lin(const std::string& name, bool bias = true);
   NormParams norm(const std::string& name) const;
-  AttentionParams attn(const std::string& name) const;
-  MlpHeadParams mlp_head(const std::string& name) const;
+  AttentionParams attn(const std::string& name);
+  MlpHeadParams mlp_head(const std::string& name);
   Mat mlp_head_forward(const Mat& h, const MlpHeadParams& p) const;
   // Which keys each new token reads in self-attention (indices into cache tokens followed by new tokens), with
   // relation embeddings.
@@ -144,6 +162,7 @@ class Model {
 
   Weights weights_;
   ModelOptions options_;
+  std::vector<std::unique_ptr<const Bf16Weight>> bf16_weights_;  // what the LinearParams' bf16 point to
   std::unique_ptr<WorkerPool> pool_;  // step_threads > 1 only
   NeighbourLimit limit_;
   LinearParams poly_fc1_, poly_fc2_, poly_fc3_, poly_fc4_;

@@ -181,7 +181,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   // within that radius of p is on p's side, with no further query; else the same test about b's own centre (unless
   // p is that centre); else its corners.
   const auto on_road = [&](const Box& b, double centre_d, double from_p) {
-    const double half_diagonal = std::hypot(b.length, b.width) / 2;
+    const double half_diagonal = norm({b.length, b.width}) / 2;
     if (std::abs(centre_d) > from_p + half_diagonal) return centre_d < 0;
     if (from_p > 0)
       if (const double d = edges.signed_distance(b.pose.x, b.pose.y, 0); std::abs(d) > half_diagonal) return d < 0;
@@ -213,7 +213,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     now[i] = box_of(a.state);
     next[i] = next_of(a, a.controlled ? a.last_motion : a.next_motion);
     const double v = std::abs(a.kin.speed) + kMaxAccel * kStepSeconds;
-    reach[i] = std::hypot(a.state.length, a.state.width) / 2 + v * kStepSeconds + v * v / (2 * kRejectBrake);
+    reach[i] = norm({a.state.length, a.state.width}) / 2 + v * kStepSeconds + v * v / (2 * kRejectBrake);
   }
   // The others agent i could touch within the step or while braking, and whose boxes it does not overlap now.
   std::vector<size_t> near;

@@ -39,7 +39,7 @@ help "$bin" inspect -- json
 help "$bin" convert -- out wosac-submission submission-metadata
 help "$bin" init-weights -- config seed out
 help "$bin" simulate -- scenario model out mode sdc steps seed rollout index top-p temperature motion-reject max-agents densify-target
-help "$bin" bench -- json model scenario steps long-steps kv-precision motion-reject
+help "$bin" bench -- json model scenario steps long-steps kv-precision matmul-precision motion-reject
 help "$bin" render -- scenario index step animate radius out
 help "$bin" eval -- data model mode rollouts seed baseline sdc json plots threads compare bootstrap wosac-submission \
   submission-metadata submission top-p temperature motion-reject

@@ -19,10 +19,12 @@ struct World {
   std::shared_ptr<const MapContext> map;
 };
 
-// Model options with the KV caches' precision pinned (tests that bind the fp32 numerics, or test both).
+// Model options with the KV caches' precision pinned, and fp32 products (tests that bind the fp32 numerics, or test
+// both key precisions), whatever the environment says.
 inline ModelOptions kv(KvPrecision p) {
   ModelOptions o;
   o.kv_precision = p;
+  o.matmul_precision = MatmulPrecision::fp32;
   return o;
 }
 

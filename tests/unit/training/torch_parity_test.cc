@@ -69,6 +69,7 @@ TEST(Parity, TorchAndEngineAgreeOnEveryHead) {
   const TorchModel torch_model = random_model(config);
   ModelOptions fp32;  // the 1e-4 bound is fp32's: fp16 keys and values have their own tolerance (kv_precision_test)
   fp32.kv_precision = KvPrecision::fp32;
+  fp32.matmul_precision = MatmulPrecision::fp32;
   auto engine_model = Model::create(torch_model.to_weights(), fp32);
   ASSERT_TRUE(engine_model.ok()) << engine_model.status();
 
