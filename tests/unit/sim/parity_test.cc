@@ -1,5 +1,5 @@
 // The incremental path (new tokens only, over the KV cache) against a full recompute of the whole history, with fp32
-// keys and values (the fp16 default's parity is in kv_precision_test).
+// keys and values (the fp16 default's parity is in precision_test).
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -172,7 +172,7 @@ TEST_P(PrecisionTest, IncrementalMatchesFullRecompute) {
     row += inc.rows();
   }
   // bf16 rounding is a step function: an input that differs by float rounding (1e-5, as fp16 keys show) now and then
-  // lands on the other side of a bf16 step, 2^-8 of its size. Measured 4.4e-3; fp32 and fp16 1.7e-6 and 1.6e-5.
+  // lands on the other side of a bf16 step, 2^-8 of its size. Measured 7.9e-3; fp32 and fp16 1.7e-6 and 1.6e-5.
   EXPECT_LT(max_hidden, GetParam() == Mode::fp16_bf16 ? 2e-2 : 1e-4);
   std::printf("incremental vs full recompute over %zu tokens: max |hidden diff| %.3g\n", all.size(), max_hidden);
 }
@@ -232,7 +232,7 @@ TEST(Bf16Products, StayCloseToFp32) {
   if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AMX-BF16";
   const testing::World f32 = load_world("small", 1, kv(KvPrecision::fp32));
   const testing::World b16 = load_world("small", 1, bf16(KvPrecision::fp16));
-  expect_close_to_fp32(f32, b16, 5e-2, 1e-2);  // measured: 2.4e-2 and 4.4e-3
+  expect_close_to_fp32(f32, b16, 5e-2, 1e-2);  // measured: 2.4e-2 and 4.1e-3
 }
 
 TEST(Bf16Products, StayCloseToFp32WithTheShippedModel) {
@@ -244,7 +244,7 @@ TEST(Bf16Products, StayCloseToFp32WithTheShippedModel) {
   b16.model = *Model::create(*weights, bf16(KvPrecision::fp16));
   f32.map = *f32.model->encode_map(nearest_segments(segment_map(*f32.scenario), scenario_focus(*f32.scenario)));
   b16.map = *b16.model->encode_map(nearest_segments(segment_map(*b16.scenario), scenario_focus(*b16.scenario)));
-  expect_close_to_fp32(f32, b16, 1e-1, 2e-1);  // measured: 4.7e-2 and 9.6e-2
+  expect_close_to_fp32(f32, b16, 1e-1, 2e-1);  // measured: 4.5e-2 and 9.3e-2
 }
 
 TEST_P(PrecisionTest, SameSeedSameRolloutAtAnyThreadCount) {

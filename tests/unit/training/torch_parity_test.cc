@@ -67,7 +67,7 @@ Mat rows_of(const Mat& m, const torch::Tensor& rows) {
 TEST(Parity, TorchAndEngineAgreeOnEveryHead) {
   const ModelConfig config = tiny_config();
   const TorchModel torch_model = random_model(config);
-  ModelOptions fp32;  // the 1e-4 bound is fp32's: fp16 keys and values have their own tolerance (kv_precision_test)
+  ModelOptions fp32;  // the 1e-4 bound is fp32's: fp16 keys and bf16 products have their own (precision_test)
   fp32.kv_precision = KvPrecision::fp32;
   fp32.matmul_precision = MatmulPrecision::fp32;
   auto engine_model = Model::create(torch_model.to_weights(), fp32);
