@@ -225,8 +225,14 @@ TEST(TeacherForcing, BadInputsAreRefused) {
   EXPECT_EQ(teacher_forced_example(no_map, config(), {}).status().code(), absl::StatusCode::kFailedPrecondition);
 }
 
+// fp32 products: the argmax check below compares the rollout's incremental logits with a full recompute to 1e-4,
+// fp32's bound (bf16 rounding can move a logit by more: tests/unit/sim/precision_test.cc).
 const Model& policy() {
-  static const std::shared_ptr<const Model> m = *Model::create(init_weights(*model_config_by_name("small"), 3));
+  static const std::shared_ptr<const Model> m = [] {
+    ModelOptions o;
+    o.matmul_precision = MatmulPrecision::fp32;
+    return *Model::create(init_weights(*model_config_by_name("small"), 3), o);
+  }();
   return *m;
 }
 
