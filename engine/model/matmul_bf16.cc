@@ -79,9 +79,13 @@ Bf16Weight bf16_pack(const float* w, int out, int in, long out_stride, long in_s
   return p;
 }
 
-__attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void bf16_linear(const float* x, int rows,
-                                                                                  const Bf16Weight& w, float* y) {
-  if (rows <= 0) return;
+namespace {
+
+constexpr int kChunkRows = 256;  // rows per call of linear_rows: bounds each thread's bf16 copy of x (<= 0.6 MB)
+
+// bf16_linear for at most kChunkRows rows.
+__attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void linear_rows(const float* x, int rows,
+                                                                                 const Bf16Weight& w, float* y) {
   const int in = w.in, out = w.out, depth_tiles = (in + kTileDepth - 1) / kTileDepth;
   const int depth = depth_tiles * kTileDepth, padded_rows = (rows + 31) / 32 * 32;
   // x in bf16, rows padded to a multiple of 32 and columns to the tiles' depth with zeros. The padding rows hold
@@ -150,6 +154,14 @@ __attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void bf16_linear
     }
   }
   _tile_release();  // back to the init state: a context switch need not save 8 KB of tiles
+}
+
+}  // namespace
+
+void bf16_linear(const float* x, int rows, const Bf16Weight& w, float* y) {
+  // Rows are independent, so chunks give the same bits as one call.
+  for (int r = 0; r < rows; r += kChunkRows)
+    linear_rows(x + static_cast<size_t>(r) * w.in, std::min(kChunkRows, rows - r), w, y + static_cast<size_t>(r) * w.out);
 }
 
 }  // namespace ss

@@ -42,7 +42,7 @@ TEST_F(Bf16Products, MatchTheProductOfTheRoundedInputs) {
   std::mt19937 rng(3);
   // rows: one token, a tile and a bit, two blocks and a tail; out: a head (3), ragged, a whole tile multiple; in:
   // tile multiples, and ragged depths (a whole map's 1,093 keys as the depth of the weighted values).
-  for (const int rows : {1, 15, 16, 17, 33, 70})
+  for (const int rows : {1, 15, 16, 17, 33, 70, 600})  // 600: more than one chunk of rows
     for (const auto& [out, in] : {std::pair{3, 32}, {48, 64}, {130, 128}, {512, 128}, {128, 512}, {32, 1093}, {20, 7}}) {
       const Mat x = random_mat(rows, in, rng), w = random_mat(out, in, rng);
       const Bf16Weight packed = bf16_pack(w.data(), out, in);
