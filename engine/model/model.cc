@@ -137,14 +137,14 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, Mode
   return std::shared_ptr<const Model>(new Model(std::move(weights), options));
 }
 
-LinearParams Model::lin(const std::string& name, bool bias) {
+LinearParams Model::lin(const std::string& name, bool bias, bool through_linear) {
   const Tensor& w = weights_.at(name + ".weight");
   LinearParams p;
   p.weight = w.data.data();
   p.out = static_cast<int>(w.shape[0]);
   p.in = static_cast<int>(w.shape[1]);
   if (bias) p.bias = weights_.at(name + ".bias").data.data();
-  if (matmul_precision() == MatmulPrecision::bf16 && bf16_packable(p.out, p.in)) {
+  if (through_linear && matmul_precision() == MatmulPrecision::bf16 && bf16_packable(p.out, p.in)) {
     bf16_weights_.push_back(std::make_unique<const Bf16Weight>(bf16_pack(p.weight, p.out, p.in)));
     p.bf16 = bf16_weights_.back().get();
   }
@@ -158,7 +158,7 @@ NormParams Model::norm(const std::string& name) const {
 
 AttentionParams Model::attn(const std::string& name) {
   return {lin(name + ".query"),     lin(name + ".key"),     lin(name + ".value"),    lin(name + ".output"),
-          lin(name + ".rel_query"), lin(name + ".rel_key"), lin(name + ".rel_value")};
+          lin(name + ".rel_query"), lin(name + ".rel_key", true, false), lin(name + ".rel_value", true, false)};
 }
 
 MlpHeadParams Model::mlp_head(const std::string& name) {

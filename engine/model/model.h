@@ -141,8 +141,9 @@ class Model {
 
  private:
   Model(Weights w, ModelOptions options);
-  // Construction only: lin packs the weight in bf16 when the products run in bf16.
-  LinearParams lin(const std::string& name, bool bias = true);
+  // Construction only: lin packs the weight in bf16 when the products run in bf16 and the layer is applied by
+  // linear() (`through_linear`; the relation key and value projections are read per head as fp32 matrices).
+  LinearParams lin(const std::string& name, bool bias = true, bool through_linear = true);
   NormParams norm(const std::string& name) const;
   AttentionParams attn(const std::string& name);
   MlpHeadParams mlp_head(const std::string& name);

@@ -15,27 +15,11 @@ namespace {
 
 using testing::kv;
 using testing::load_world;
+using testing::roll;
+using testing::same_rollout;
 using testing::same_result;
 using testing::sdc_control;
 using testing::start;
-
-std::vector<StepResult> roll(Session& s, const testing::World& w, int steps) {
-  std::vector<StepResult> out;
-  for (int i = 0; i < steps; ++i) {
-    auto r = s.step({sdc_control(w, s.step_index() + 1)});
-    EXPECT_TRUE(r.ok()) << r.status();
-    if (!r.ok()) break;
-    out.push_back(*r);
-  }
-  return out;
-}
-
-bool same_rollout(const std::vector<StepResult>& a, const std::vector<StepResult>& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (!same_result(a[i], b[i])) return false;
-  return true;
-}
 
 ModelOptions bf16(KvPrecision p) {
   ModelOptions o = kv(p);
@@ -150,18 +134,25 @@ class Fp16Test : public ::testing::Test {
   static inline testing::World* world_ = nullptr;
 };
 
-// Incremental decoding against a full recompute in the same mode (both round the same keys and values, and a bf16
-// product's row does not depend on its batch), over a 19-step rollout with agents entering and leaving.
-TEST_P(PrecisionTest, IncrementalMatchesFullRecompute) {
+// A 19-step full-mode rollout (agents entering and leaving) with every decode call's token batch and outputs.
+Session::Probe probed_rollout(const testing::World& w) {
   SessionOptions o;
   o.mode = SessionMode::full;
   o.seed = 11;
   o.roi_radius = 40;
   o.max_agents = 24;
   Session::Probe probe;
-  auto s = Session::create(w().model, w().scenario, w().map, o, &probe);
-  ASSERT_TRUE(s.ok()) << s.status();
-  for (int step = 3; step < 19; ++step) ASSERT_TRUE((*s)->step({sdc_control(w(), step)}).ok());
+  auto s = Session::create(w.model, w.scenario, w.map, o, &probe);
+  EXPECT_TRUE(s.ok()) << s.status();
+  if (!s.ok()) return probe;
+  for (int step = 3; step < 19; ++step) EXPECT_TRUE((*s)->step({sdc_control(w, step)}).ok());
+  return probe;
+}
+
+// Incremental decoding against a full recompute in the same mode (both round the same keys and values, and a bf16
+// product's row does not depend on its batch), over a 19-step rollout with agents entering and leaving.
+TEST_P(PrecisionTest, IncrementalMatchesFullRecompute) {
+  const Session::Probe probe = probed_rollout(w());
   std::vector<DecoderToken> all;  // every batch again, at once
   for (const auto& b : probe.batches) all.insert(all.end(), b.begin(), b.end());
   const Mat full = w().model->decode_full(*w().map, all);
@@ -183,15 +174,7 @@ TEST_P(PrecisionTest, IncrementalMatchesFullRecompute) {
 // (models/default.safetensors).
 void expect_close_to_fp32(const testing::World& f32, const testing::World& f16, double hidden_tol,
                           double logit_tol) {
-  SessionOptions o;
-  o.mode = SessionMode::full;
-  o.seed = 11;
-  o.roi_radius = 40;
-  o.max_agents = 24;
-  Session::Probe probe;
-  auto s = Session::create(f32.model, f32.scenario, f32.map, o, &probe);
-  ASSERT_TRUE(s.ok()) << s.status();
-  for (int step = 3; step < 19; ++step) ASSERT_TRUE((*s)->step({sdc_control(f32, step)}).ok());
+  const Session::Probe probe = probed_rollout(f32);
   KvCache half = f16.model->new_cache(), single = f32.model->new_cache();
   double max_hidden = 0, max_logit = 0;
   for (const auto& batch : probe.batches) {

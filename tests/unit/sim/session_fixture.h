@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <vector>
 
 #include "engine/map/focus.h"
 #include "engine/model/model.h"
@@ -75,6 +76,25 @@ inline bool same_result(const StepResult& a, const StepResult& b) {
       return false;
   for (size_t i = 0; i < a.lights.size(); ++i)
     if (a.lights[i].state != b.lights[i].state) return false;
+  return true;
+}
+
+// `steps` steps with the SDC driven by its log; stops at the first error (reported).
+inline std::vector<StepResult> roll(Session& s, const World& w, int steps) {
+  std::vector<StepResult> out;
+  for (int i = 0; i < steps; ++i) {
+    auto r = s.step({sdc_control(w, s.step_index() + 1)});
+    EXPECT_TRUE(r.ok()) << r.status();
+    if (!r.ok()) break;
+    out.push_back(*r);
+  }
+  return out;
+}
+
+inline bool same_rollout(const std::vector<StepResult>& a, const std::vector<StepResult>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (!same_result(a[i], b[i])) return false;
   return true;
 }
 

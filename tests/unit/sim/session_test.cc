@@ -19,29 +19,13 @@ namespace ss {
 namespace {
 
 using testing::load_world;
+using testing::roll;
+using testing::same_rollout;
 using testing::same_result;
 using testing::sdc_control;
 using testing::start;
 
 class SessionTest : public testing::SmallWorldTest {};
-
-std::vector<StepResult> roll(Session& s, const testing::World& w, int steps) {
-  std::vector<StepResult> out;
-  for (int i = 0; i < steps; ++i) {
-    auto r = s.step({sdc_control(w, s.step_index() + 1)});
-    EXPECT_TRUE(r.ok()) << r.status();
-    if (!r.ok()) break;
-    out.push_back(*r);
-  }
-  return out;
-}
-
-bool same_rollout(const std::vector<StepResult>& a, const std::vector<StepResult>& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (!same_result(a[i], b[i])) return false;
-  return true;
-}
 
 TEST_F(SessionTest, MotionModeStartsFromTheLogAtTheCurrentStep) {
   SessionOptions o;
