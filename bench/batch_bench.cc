@@ -1,0 +1,47 @@
+// Would batching sessions pay? The dense products of one 64-agent step of the large model (340 tokens) against the
+// same products over the tokens of 4 and 32 sessions' steps stacked, in each precision the engine runs (Eigen fp32,
+// AMX bf16): a batch pays only if its cost per row falls. Shapes: the Linear layers of the large model (d_model 128,
+// feed-forward 512) and of the small one the server ships (64, 256). Run: build/bench/batch_bench; compare the per_row counters across the rows arguments.
+#include <benchmark/benchmark.h>
+
+#include "engine/model/linalg.h"
+#include "engine/model/matmul_bf16.h"
+
+namespace ss {
+namespace {
+
+constexpr int kStepRows = 340;  // one 64-agent step's new tokens (338 in bench/step_bench's BM_Step19)
+
+// Arguments: sessions stacked (1, 4, 32), output width, input width. The product alone, into an output allocated
+// once: the best case for a batch (a batching server would also gather each session's rows and scatter them back).
+void BM_Linear(benchmark::State& state, bool bf16) {
+  if (bf16 && !bf16_products_available()) return state.SkipWithError("this CPU has no AMX-BF16");
+  const int rows = kStepRows * static_cast<int>(state.range(0));
+  const int out = static_cast<int>(state.range(1)), in = static_cast<int>(state.range(2));
+  const Mat w = Mat::Random(out, in) * 0.1f;
+  const Bf16Weight packed = bf16 ? bf16_pack(w.data(), out, in) : Bf16Weight{};
+  const Mat x = Mat::Random(rows, in);
+  Mat y(rows, out);
+  for (auto _ : state) {
+    if (bf16) bf16_linear(x.data(), rows, packed, y.data());
+    else y.noalias() = x * w.transpose();
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.counters["rows"] = rows;
+  // Seconds per row (printed with an SI prefix: 38n is 38 ns).
+  state.counters["per_row"] = benchmark::Counter(
+      static_cast<double>(rows), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+void shapes(benchmark::internal::Benchmark* b) {
+  for (int sessions : {1, 4, 32})
+    for (auto [out, in] : {std::pair{128, 128}, {512, 128}, {128, 512}, {64, 64}, {256, 64}, {64, 256}}) b->Args({sessions, out, in});
+}
+
+BENCHMARK_CAPTURE(BM_Linear, fp32, false)->Apply(shapes)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Linear, bf16, true)->Apply(shapes)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace ss
+
+BENCHMARK_MAIN();
