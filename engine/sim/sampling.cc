@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <functional>
 #include <vector>
@@ -62,42 +63,98 @@ int nucleus(std::span<const float> logits, double temperature, double top_p, std
   return top_p < 1.0 ? select_nucleus(c, top_p * sum) : n;
 }
 
-// One draw over c[0, keep), walked in order (deterministic for given candidates).
+// One draw over c[0, keep), walked in order (deterministic for given candidates): its index, or -1 when none of
+// them has mass.
 int draw(const std::vector<Candidate>& c, int keep, Rng& rng) {
   double sum = 0;
   for (int k = 0; k < keep; ++k) sum += c[k].p;
-  double u = rng.uniform() * sum;
+  double u = rng.uniform() * sum;  // drawn even without mass, so the stream does not depend on it
+  if (!(sum > 0)) return -1;
   for (int k = 0; k < keep; ++k) {
     u -= c[k].p;
-    if (u < 0) return c[k].token;
+    if (u < 0) return k;
   }
-  // Rounding left u a hair above zero: the last token with mass.
+  // Rounding left u a hair above zero: the last candidate with mass.
   for (int k = keep - 1; k >= 0; --k)
-    if (c[k].p > 0) return c[k].token;
-  return c[0].token;
+    if (c[k].p > 0) return k;
+  return -1;
 }
+
+// The candidates' masses in a Fenwick tree: a draw and a removal cost O(log n) each, so drawing without
+// replacement until a token is taken does not walk the nucleus once per draw.
+class MassTree {
+ public:
+  MassTree(const std::vector<Candidate>& c, int n)
+      : sum_(n + 1, 0.0), mass_(n), top_(static_cast<int>(std::bit_floor(static_cast<unsigned>(n)))) {
+    for (int i = 0; i < n; ++i) {
+      mass_[i] = c[i].p;
+      alive_ += c[i].p > 0;
+      sum_[i + 1] += c[i].p;
+      if (const int up = (i + 1) + ((i + 1) & -(i + 1)); up <= n) sum_[up] += sum_[i + 1];
+    }
+  }
+  // Takes candidate k out; false once no candidate with mass is left.
+  bool remove(int k) {
+    if (mass_[k] > 0) {
+      for (int i = k + 1; i < static_cast<int>(sum_.size()); i += i & -i) sum_[i] -= mass_[k];
+      mass_[k] = 0;
+      --alive_;
+    }
+    return alive_ > 0;
+  }
+  // A candidate with mass, drawn in proportion to it (only while remove() says some are left).
+  int draw(Rng& rng) const {
+    const int n = static_cast<int>(mass_.size());
+    double total = 0;
+    for (int i = n; i > 0; i -= i & -i) total += sum_[i];
+    double u = rng.uniform() * total;
+    int pos = 0;  // the candidates before pos hold at most u
+    for (int step = top_; step > 0; step /= 2)
+      if (pos + step <= n && sum_[pos + step] <= u) {
+        pos += step;
+        u -= sum_[pos];
+      }
+    // Rounding can land past the end or on a removed candidate: the nearest one with mass.
+    for (int k = std::min(pos, n - 1); k >= 0; --k)
+      if (mass_[k] > 0) return k;
+    for (int k = pos; k < n; ++k)
+      if (mass_[k] > 0) return k;
+    return 0;  // unreachable while alive_ > 0
+  }
+
+ private:
+  std::vector<double> sum_;   // 1-based Fenwick sums
+  std::vector<float> mass_;   // each candidate's mass, 0 once removed
+  int alive_ = 0;             // candidates with mass left
+  int top_ = 0;               // the largest power of two <= n (the search's first step)
+};
 
 }  // namespace
 
 int sample_token(std::span<const float> logits, double temperature, double top_p, Rng& rng) {
   std::vector<Candidate> c;
   const int keep = nucleus(logits, temperature, top_p, c);
-  return draw(c, keep, rng);
+  const int k = draw(c, keep, rng);
+  return c[k < 0 ? 0 : k].token;  // no mass at all (every logit -inf): the first token
 }
 
 int sample_token_if(std::span<const float> logits, double temperature, double top_p, Rng& rng,
                     const std::function<bool(int)>& accept) {
   std::vector<Candidate> c;
   const int keep = nucleus(logits, temperature, top_p, c);
-  // Draws until one is accepted: exactly the distribution given acceptance, and cheap when acceptance is likely.
-  // After kLazyDraws refusals, `accept` is asked of every token once and the draw is over those it takes.
-  constexpr int kLazyDraws = 8;
-  for (int k = 0; k < kLazyDraws; ++k)
-    if (const int t = draw(c, keep, rng); accept(t)) return t;
-  const auto end = std::stable_partition(c.begin(), c.begin() + keep,
-                                         [&](const Candidate& x) { return x.p > 0 && accept(x.token); });
-  const int accepted = static_cast<int>(end - c.begin());
-  return accepted > 0 ? draw(c, accepted, rng) : -1;
+  // The first draw is sample_token's; when refused, the draws go on without replacement: a refused token leaves the
+  // candidates and the next draw is over the rest. The tokens `accept` takes keep their relative odds at every draw,
+  // so the first one drawn is a draw from the distribution given acceptance. Each token is asked at most once, and
+  // only those drawn: with random weights a pass of `accept` over the whole nucleus was 8 % of a step.
+  const int first = draw(c, keep, rng);
+  if (first < 0) return -1;
+  if (accept(c[first].token)) return c[first].token;
+  MassTree left(c, keep);
+  for (int k = first; left.remove(k);) {
+    k = left.draw(rng);
+    if (accept(c[k].token)) return c[k].token;
+  }
+  return -1;
 }
 
 }  // namespace ss

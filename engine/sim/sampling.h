@@ -13,8 +13,8 @@ namespace ss {
 int sample_token(std::span<const float> logits, double temperature, double top_p, Rng& rng);
 
 // A draw from the nucleus' tokens that `accept` takes: the model's distribution given acceptance (within the
-// nucleus). -1 when `accept` takes none. Draws lazily: up to 8 plain draws, then one pass of `accept` over the
-// nucleus; drawing with sample_token and, when refused, with this, is the same distribution.
+// nucleus). -1 when `accept` takes none. Draws without replacement until a token is taken, so `accept` is asked once
+// at most per token, and only of those drawn; its first draw is sample_token's.
 int sample_token_if(std::span<const float> logits, double temperature, double top_p, Rng& rng,
                     const std::function<bool(int)>& accept);
 

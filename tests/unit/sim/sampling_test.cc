@@ -99,8 +99,8 @@ TEST(Rng, KnownSequenceAndUniformRange) {
   EXPECT_GT(hi, 0.999);
 }
 
-// The draw given acceptance: refused tokens never come, the accepted keep their relative odds, whether the lazy
-// draws find one (likely acceptance) or the pass over every token does (a token the first draws almost never hit).
+// The draw given acceptance: refused tokens never come, the accepted keep their relative odds, whether the first
+// draws find one (likely acceptance) or it is the last token left (a token the draws almost never hit).
 TEST(Sampling, SampleTokenIfIsTheDistributionGivenAcceptance) {
   const std::vector<float> logits = {std::log(1.0f), std::log(2.0f), std::log(3.0f), std::log(4.0f)};
   Rng rng(5);
@@ -111,11 +111,27 @@ TEST(Sampling, SampleTokenIfIsTheDistributionGivenAcceptance) {
   EXPECT_NEAR(h[2] / 4e4, 0.75, 0.01);
 
   std::vector<float> rare(1089, 0.0f);
-  rare[7] = -8.0f;  // p about 3e-4 / 1089: after 8 refused draws, the pass over the tokens finds it
-  int calls = 0;
-  for (int i = 0; i < 100; ++i)
-    EXPECT_EQ(sample_token_if(rare, 1.0, 1.0, rng, [&](int t) { return ++calls, t == 7; }), 7);
-  EXPECT_GT(calls, 100 * 1000) << "each accept() pass visits the whole vocabulary";
+  rare[7] = -8.0f;  // p about 3e-4 / 1089: drawn after nearly every other token was refused
+  for (int i = 0; i < 100; ++i) {
+    std::vector<int> asked(rare.size());
+    EXPECT_EQ(sample_token_if(rare, 1.0, 1.0, rng, [&](int t) { return ++asked[t], t == 7; }), 7);
+    EXPECT_EQ(*std::max_element(asked.begin(), asked.end()), 1) << "a token is asked about at most once";
+  }
+}
+
+// Its first draw is sample_token's (same stream), so a taken first draw changes nothing; a refused one is not asked
+// again.
+TEST(Sampling, SampleTokenIfAsksOnlyTheTokensItDraws) {
+  std::vector<float> logits(1089, 0.0f);
+  for (int t = 0; t < 10; ++t) logits[t] = 12.0f;  // ten tokens hold nearly all the mass
+  Rng a(9), b(9);
+  EXPECT_EQ(sample_token_if(logits, 1.0, 1.0, a, [](int) { return true; }), sample_token(logits, 1.0, 1.0, b));
+  for (int i = 0; i < 50; ++i) {
+    int asked = 0;
+    const int t = sample_token_if(logits, 1.0, 1.0, a, [&](int t) { return ++asked, t >= 5; });
+    EXPECT_GE(t, 5);
+    EXPECT_LE(asked, 6) << "at most the five refused tokens of the ten, then one taken (the rest: 1e-2 of the mass)";
+  }
 }
 
 TEST(Sampling, SampleTokenIfStaysInTheNucleusAndSaysWhenNothingPasses) {
