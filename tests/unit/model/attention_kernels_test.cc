@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -135,6 +136,23 @@ TEST(HalfFloats, ConversionRoundsToNearestAndSaturates) {
   EXPECT_EQ(half_to_float(float_to_half(70000.0f)), 65504.0f);
   EXPECT_EQ(half_to_float(float_to_half(-1e9f)), -65504.0f);
   EXPECT_EQ(float_to_half(-0.0f), 0x8000);
+}
+
+// The fast softmax's exp against std::exp, relatively: every weight from 1 down to 1e-38 within 1e-6 of the plain
+// form's, exp's underflow to exactly 0 where the plain form's is 0, and a -inf score weighing nothing.
+TEST(Kernels, SoftmaxWeightsMatchStdExpRelatively) {
+  const int m = 2049;
+  std::vector<float> fast(m);
+  for (int j = 0; j < m; ++j) fast[j] = -110.0f * static_cast<float>(j) / (m - 2);  // 0 down to -110 (underflow)
+  fast[m - 1] = -std::numeric_limits<float>::infinity();
+  std::vector<float> plain = fast;
+  kernel_softmax_rows(fast.data(), 1, m, m, 1.0f);
+  kernel_softmax_rows_plain(plain.data(), 1, m, m, 1.0f);
+  for (int j = 0; j < m; ++j) {
+    if (plain[j] > 1e-38f) EXPECT_NEAR(fast[j] / plain[j], 1.0f, 1e-6f) << "score " << j;
+    else EXPECT_LE(fast[j], 2e-38f) << "score " << j;
+  }
+  EXPECT_EQ(fast[m - 1], 0.0f);
 }
 
 INSTANTIATE_TEST_SUITE_P(Shapes, KernelTest,
