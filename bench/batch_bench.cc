@@ -1,7 +1,8 @@
 // Would batching sessions pay? The dense products of one 64-agent step of the large model (340 tokens) against the
 // same products over the tokens of 4 and 32 sessions' steps stacked, in each precision the engine runs (Eigen fp32,
 // AMX bf16): a batch pays only if its cost per row falls. Shapes: the Linear layers of the large model (d_model 128,
-// feed-forward 512) and of the small one the server ships (64, 256). Run: build/bench/batch_bench; compare the per_row counters across the rows arguments.
+// feed-forward 512) and of the small one the server ships (64, 256). Run: build/bench/batch_bench; compare the
+// per_row counters across the first argument.
 #include <benchmark/benchmark.h>
 
 #include "engine/model/linalg.h"
@@ -35,7 +36,8 @@ void BM_Linear(benchmark::State& state, bool bf16) {
 
 void shapes(benchmark::internal::Benchmark* b) {
   for (int sessions : {1, 4, 32})
-    for (auto [out, in] : {std::pair{128, 128}, {512, 128}, {128, 512}, {64, 64}, {256, 64}, {64, 256}}) b->Args({sessions, out, in});
+    for (auto [out, in] : {std::pair{128, 128}, {512, 128}, {128, 512}, {64, 64}, {256, 64}, {64, 256}})
+      b->Args({sessions, out, in});
 }
 
 BENCHMARK_CAPTURE(BM_Linear, fp32, false)->Apply(shapes)->Unit(benchmark::kMicrosecond);
