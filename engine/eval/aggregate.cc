@@ -4,8 +4,29 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <vector>
 
 namespace ss {
+
+namespace {
+
+// NaN with fewer than 3 pairs or without spread on either side.
+double pearson(const std::vector<double>& x, const std::vector<double>& y) {
+  const size_t n = x.size();
+  if (n < 3) return std::numeric_limits<double>::quiet_NaN();
+  double mx = 0, my = 0;
+  for (size_t i = 0; i < n; ++i) mx += x[i], my += y[i];
+  mx /= n, my /= n;
+  double sxy = 0, sxx = 0, syy = 0;
+  for (size_t i = 0; i < n; ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+    syy += (y[i] - my) * (y[i] - my);
+  }
+  return sxx > 0 && syy > 0 ? sxy / std::sqrt(sxx * syy) : std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
 
 DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
   DatasetEvaluation d;
@@ -72,6 +93,7 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
   d.motion_all = motion("", &ScenarioEvaluation::motion_all);
   d.motion_predict = motion("tracks_to_predict.", &ScenarioEvaluation::motion_predict);
 
+  std::vector<double> log_counts, generated_counts;  // full mode, per scenario with a log agent
   for (const ScenarioEvaluation& s : scenarios) {
     d.named_scenarios += s.named_by_scenario;
     d.evaluated_objects += s.evaluated;
@@ -84,8 +106,10 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
         sum->agents += add->agents, sum->vehicles += add->vehicles, sum->offroad_vehicles += add->offroad_vehicles;
       if (s.placed_log.agents > 0 && s.rollouts > 0) {
         ++d.placed_scenarios;
-        const double ratio = static_cast<double>(s.placed_generated.agents) / s.rollouts / s.placed_log.agents;
-        d.placed_within_30 += std::abs(ratio - 1) <= 0.3;
+        const double generated = static_cast<double>(s.placed_generated.agents) / s.rollouts;
+        d.placed_within_30 += std::abs(generated / s.placed_log.agents - 1) <= 0.3;
+        log_counts.push_back(s.placed_log.agents);
+        generated_counts.push_back(generated);
       }
     }
     for (int f = 0; f < kNumRealismFeatures; ++f) {
@@ -96,6 +120,7 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
       for (size_t b = 0; b < src.log.size(); ++b) h.log[b] += src.log[b], h.sim[b] += src.sim[b];
     }
   }
+  d.placed_count_correlation = pearson(log_counts, generated_counts);
   d.match_distance = d.matched ? d.match_distance / d.matched : 0.0;
   d.filled_share = mean("filled_share", [](const auto& s) { return s.filled_share; });
   if (d.has_mmd) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <map>
 #include <span>
 #include <string>
@@ -33,6 +34,10 @@ struct DatasetEvaluation {
   // scenarios whose generated count (mean over rollouts) is within 30 % of the log's (of those with a log agent).
   PlacedAgents placed_log, placed_generated;
   int placed_within_30 = 0, placed_scenarios = 0;
+  // Over those scenarios, the Pearson correlation of the generated count (mean over rollouts) with the log's: whether
+  // the model places more where the log has more (MODEL_CARD.md: the map predicts the count only so far). NaN with
+  // fewer than 3 scenarios or no spread.
+  double placed_count_correlation = std::numeric_limits<double>::quiet_NaN();
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // summed
   // Values undefined (NaN) in some scenarios are averaged over the others; how many were left out, by JSON key.
   std::map<std::string, int> undefined;

@@ -48,6 +48,8 @@ assert set(runs["full"]["mmd"]["strict"]) == {"position", "heading", "size", "ve
 p = runs["full"]["placed_agents"]
 assert p["log"]["agents"] > 0 and p["generated_per_rollout"]["agents"] >= 0, p
 assert p["log"]["vehicles"] <= p["log"]["agents"] and 0 <= p["scenarios_count_within_30pct"] <= p["scenarios_with_log_agents"] <= 3, p
+# The correlation of the counts over scenarios: null below 3 scenarios or without spread, else in [-1, 1].
+assert p["count_correlation"] is None or -1 <= p["count_correlation"] <= 1, p
 assert all("placed_agents" in s for s in runs["full"]["per_scenario"])
 assert all("placed_agents" not in r for name, r in runs.items() if name != "full")
 assert runs["motion"]["sampling"] == {"top_p": 0.8, "temperature": 0.7, "motion_reject": True} and "sampling" not in runs["cv"]

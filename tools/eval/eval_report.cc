@@ -113,7 +113,8 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
     j["placed_agents"] = {{"log", placed_json(d.placed_log, 1)},
                           {"generated_per_rollout", placed_json(d.placed_generated, run.rollouts)},
                           {"scenarios_count_within_30pct", d.placed_within_30},
-                          {"scenarios_with_log_agents", d.placed_scenarios}};
+                          {"scenarios_with_log_agents", d.placed_scenarios},
+                          {"count_correlation", d.placed_count_correlation}};
   json undefined = json::object();
   for (const auto& [key, n] : d.undefined) undefined[key] = n;
   j["undefined_scenarios"] = undefined;
@@ -189,8 +190,9 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
                             fmt(m->velocity));
     const double per_rollout = run.rollouts > 0 ? static_cast<double>(d.placed_generated.agents) / run.rollouts : 0;
     absl::StrAppendFormat(&t, "\n  agents in the region at the first step: generated %s per rollout, log %d; "
-                          "scenarios within 30 %% of the log's count: %d of %d\n",
-                          fmt(per_rollout, 1), d.placed_log.agents, d.placed_within_30, d.placed_scenarios);
+                          "scenarios within 30 %% of the log's count: %d of %d; correlation of the counts: %s\n",
+                          fmt(per_rollout, 1), d.placed_log.agents, d.placed_within_30, d.placed_scenarios,
+                          fmt(d.placed_count_correlation, 2));
     absl::StrAppendFormat(&t, "  offroad vehicles at the first step: generated %s (%d of %d), log %s (%d of %d)\n",
                           fmt(offroad_share(d.placed_generated), 3), d.placed_generated.offroad_vehicles,
                           d.placed_generated.vehicles, fmt(offroad_share(d.placed_log), 3),
