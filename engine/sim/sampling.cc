@@ -1,49 +1,101 @@
 #include "engine/sim/sampling.h"
 
 #include <Eigen/Core>
+#include <immintrin.h>
 
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <vector>
 
 namespace ss {
 namespace {
 
+// A token and its mass as one 64-bit key: the mass's bits above, the token's complement below. Masses are >= 0 (and
+// never -0), so keys compare as integers the way the nucleus ranks tokens (more mass first, then the lower token),
+// and the partition below runs eight candidates to an AVX-512 vector.
 struct Candidate {
-  float p;
-  int token;
+  uint64_t key;
+
+  static Candidate of(float p, int token) {
+    return {static_cast<uint64_t>(std::bit_cast<uint32_t>(p)) << 32 | ~static_cast<uint32_t>(token)};
+  }
+  float p() const { return std::bit_cast<float>(static_cast<uint32_t>(key >> 32)); }
+  int token() const { return static_cast<int>(~static_cast<uint32_t>(key)); }
 };
+
+// Reorders c[lo, hi), out of place and stably, around the key `pivot` (one of them): the keys above it, then the
+// pivot, then the keys below; returns the pivot's index. Adds the mass of the keys above it to `ahead`, summed in
+// eight lanes by position (lane = (i - lo) % 8), then lane 0 to 7: one order, so one result, with or without AVX-512.
+int partition_around(std::vector<Candidate>& c, std::vector<Candidate>& below, int lo, int hi, uint64_t pivot,
+                     double& ahead) {
+  below.resize(hi - lo);
+  alignas(64) double lanes[8] = {};
+  int left = lo, right = 0;
+  int i = lo;
+#if defined(__AVX512F__)
+  // Compress-stores write c[left..] only below the block just loaded, and `below` is separate scratch.
+  const __m512i pv = _mm512_set1_epi64(static_cast<long long>(pivot));
+  __m512d acc = _mm512_setzero_pd();
+  auto* data = reinterpret_cast<uint64_t*>(c.data());
+  auto* rest = reinterpret_cast<uint64_t*>(below.data());
+  for (; i < hi; i += 8) {
+    const __mmask8 valid = hi - i >= 8 ? __mmask8(0xff) : static_cast<__mmask8>((1u << (hi - i)) - 1);
+    const __m512i x = _mm512_maskz_loadu_epi64(valid, data + i);
+    const __mmask8 gt = _mm512_mask_cmpgt_epu64_mask(valid, x, pv), lt = _mm512_mask_cmplt_epu64_mask(valid, x, pv);
+    _mm512_mask_compressstoreu_epi64(data + left, gt, x);
+    _mm512_mask_compressstoreu_epi64(rest + right, lt, x);
+    left += std::popcount(static_cast<unsigned>(gt));
+    right += std::popcount(static_cast<unsigned>(lt));
+    const __m256 p = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64(x, 32)));
+    acc = _mm512_add_pd(acc, _mm512_maskz_cvtps_pd(gt, p));
+  }
+  _mm512_store_pd(lanes, acc);
+#else
+  for (; i < hi; ++i) {
+    const Candidate x = c[i];
+    if (x.key > pivot) {
+      c[left++] = x;
+      lanes[(i - lo) % 8] += x.p();
+    } else if (x.key < pivot) {
+      below[right++] = x;
+    }
+  }
+#endif
+  double sum = 0;
+  for (double l : lanes) sum += l;
+  ahead += sum;
+  c[left] = {pivot};
+  std::copy_n(below.begin(), right, c.begin() + left + 1);
+  return left;
+}
 
 // The nucleus: the smallest set of most probable candidates (ties broken by token) whose mass reaches `threshold`.
 // Moves it to the front of `c` and returns its size (at least 1). A quickselect driven by mass: each round splits
 // the undecided range at a pivot and keeps only the side where the mass crosses the threshold, so it costs O(n)
 // on average whether the nucleus holds 3 tokens or 1000 (random weights), instead of a sort.
 int select_nucleus(std::vector<Candidate>& c, double threshold) {
-  auto before = [](const Candidate& a, const Candidate& b) { return a.p > b.p || (a.p == b.p && a.token < b.token); };
+  thread_local std::vector<Candidate> below;
   int lo = 0, hi = static_cast<int>(c.size());  // c[0, lo) is in the nucleus; its end lies in [lo, hi]
   double mass = 0;                              // of c[0, lo)
   while (lo < hi && mass < threshold) {
     const Candidate pivot = c[lo + (hi - lo) / 2];
-    const auto first_after =
-        std::partition(c.begin() + lo, c.begin() + hi, [&](const Candidate& x) { return before(x, pivot); });
-    const int g = static_cast<int>(first_after - c.begin());
     double ahead = 0;  // the candidates before the pivot
-    for (int i = lo; i < g; ++i) ahead += c[i].p;
+    const int g = partition_around(c, below, lo, hi, pivot.key, ahead);
     if (mass + ahead >= threshold) {
       hi = g;  // the nucleus ends among them
       continue;
     }
     // All of them are in, and the pivot is next.
     mass += ahead;
-    const auto at = std::find_if(c.begin() + g, c.begin() + hi, [&](const Candidate& x) { return x.token == pivot.token; });
-    std::iter_swap(c.begin() + g, at);
-    mass += pivot.p;
+    mass += pivot.p();
     lo = g + 1;
   }
   if (lo > 0) return lo;
-  std::nth_element(c.begin(), c.begin(), c.end(), before);  // nothing has mass: the first candidate alone
+  // Nothing has mass: the first candidate alone.
+  std::iter_swap(c.begin(), std::max_element(c.begin(), c.end(), [](Candidate a, Candidate b) { return a.key < b.key; }));
   return 1;
 }
 
@@ -57,8 +109,8 @@ int nucleus(std::span<const float> logits, double temperature, double top_p, std
   c.resize(n);
   double sum = 0;
   for (int i = 0; i < n; ++i) {
-    c[i] = {std::isfinite(p[i]) ? p[i] : 0.0f, i};
-    sum += c[i].p;
+    c[i] = Candidate::of(std::isfinite(p[i]) ? p[i] : 0.0f, i);
+    sum += c[i].p();
   }
   return top_p < 1.0 ? select_nucleus(c, top_p * sum) : n;
 }
@@ -67,16 +119,16 @@ int nucleus(std::span<const float> logits, double temperature, double top_p, std
 // them has mass.
 int draw(const std::vector<Candidate>& c, int keep, Rng& rng) {
   double sum = 0;
-  for (int k = 0; k < keep; ++k) sum += c[k].p;
+  for (int k = 0; k < keep; ++k) sum += c[k].p();
   double u = rng.uniform() * sum;  // drawn even without mass, so the stream does not depend on it
   if (!(sum > 0)) return -1;
   for (int k = 0; k < keep; ++k) {
-    u -= c[k].p;
+    u -= c[k].p();
     if (u < 0) return k;
   }
   // Rounding left u a hair above zero: the last candidate with mass.
   for (int k = keep - 1; k >= 0; --k)
-    if (c[k].p > 0) return k;
+    if (c[k].p() > 0) return k;
   return -1;
 }
 
@@ -87,9 +139,9 @@ class MassTree {
   MassTree(const std::vector<Candidate>& c, int n)
       : sum_(n + 1, 0.0), mass_(n), top_(static_cast<int>(std::bit_floor(static_cast<unsigned>(n)))) {
     for (int i = 0; i < n; ++i) {
-      mass_[i] = c[i].p;
-      alive_ += c[i].p > 0;
-      sum_[i + 1] += c[i].p;
+      mass_[i] = c[i].p();
+      alive_ += c[i].p() > 0;
+      sum_[i + 1] += c[i].p();
       if (const int up = (i + 1) + ((i + 1) & -(i + 1)); up <= n) sum_[up] += sum_[i + 1];
     }
   }
@@ -135,7 +187,7 @@ int sample_token(std::span<const float> logits, double temperature, double top_p
   std::vector<Candidate> c;
   const int keep = nucleus(logits, temperature, top_p, c);
   const int k = draw(c, keep, rng);
-  return c[k < 0 ? 0 : k].token;  // no mass at all (every logit -inf): the first token
+  return c[k < 0 ? 0 : k].token();  // no mass at all (every logit -inf): the first token
 }
 
 int sample_token_if(std::span<const float> logits, double temperature, double top_p, Rng& rng,
@@ -148,11 +200,11 @@ int sample_token_if(std::span<const float> logits, double temperature, double to
   // only those drawn: with random weights a pass of `accept` over the whole nucleus was 8 % of a step.
   const int first = draw(c, keep, rng);
   if (first < 0) return -1;
-  if (accept(c[first].token)) return c[first].token;
+  if (accept(c[first].token())) return c[first].token();
   MassTree left(c, keep);
   for (int k = first; left.remove(k);) {
     k = left.draw(rng);
-    if (accept(c[k].token)) return c[k].token;
+    if (accept(c[k].token())) return c[k].token();
   }
   return -1;
 }
