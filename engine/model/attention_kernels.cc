@@ -264,6 +264,16 @@ inline void store4(__m512 z, float* p0, float* p1, float* p2, float* p3) {
 // The low min(n, 16) lanes: a last, partial block of keys.
 inline __mmask16 first_lanes(int n) { return n >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << n) - 1); }
 
+// Asks for the cache lines of the part of row `key` the kernels read next (`bytes` from `p`): the keys of a query
+// are rows scattered over the cache, which the hardware prefetchers cannot guess, and the kernels otherwise wait on
+// each row's loads.
+template <typename T>
+inline void prefetch_row(const T* p, int elems) {
+  const char* c = reinterpret_cast<const char*>(p);
+  for (int b = 0; b < elems * static_cast<int>(sizeof(T)); b += 64) _mm_prefetch(c + b, _MM_HINT_T0);
+}
+constexpr int kPrefetchKeys = 8;  // how far ahead of the key being read
+
 // Sixteen key or value elements as floats: loaded, or converted from half floats.
 inline __m512 load16(const float* p) { return _mm512_loadu_ps(p); }
 inline __m512 load16(const uint16_t* p) {
@@ -298,6 +308,8 @@ void key_scores(const AttentionShape& s, const float* q, const T* k, const int* 
     float* out = scores + static_cast<size_t>(h) * m;
     int j = 0;
     for (; j + 4 <= m; j += 4) {
+      for (int e = 0; e < 4 && j + kPrefetchKeys + e < m; ++e)
+        prefetch_row(k + static_cast<size_t>(keys[j + kPrefetchKeys + e]) * d + h * s.dh, 4 * s.dh);
       __m512 acc[16];  // acc[4 * g + key]
       for (int e = 0; e < 4; ++e) {
         const T* kr = k + static_cast<size_t>(keys[j + e]) * d + h * s.dh;
@@ -332,6 +344,7 @@ void weighted_values(const AttentionShape& s, const float* a, const T* v, const 
     __m512 acc[4 * HV];
     for (int i = 0; i < 4 * HV; ++i) acc[i] = _mm512_loadu_ps(out + h * s.dh + 16 * i);
     for (int j = 0; j < m; ++j) {
+      if (j + kPrefetchKeys < m) prefetch_row(v + static_cast<size_t>(keys[j + kPrefetchKeys]) * d + h * s.dh, 4 * s.dh);
       const T* vr = v + static_cast<size_t>(keys[j]) * d + h * s.dh;
       for (int g = 0; g < 4; ++g) {
         const __m512 w = _mm512_set1_ps(a[(h + g) * m + j]);
