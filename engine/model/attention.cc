@@ -78,10 +78,11 @@ struct TableTerms {
 };
 
 // One query with its own key set, all heads at once: scores (heads x m) from the key rows in place (a gather would
-// copy each row for one use), the relation terms, softmax, then the weighted values (added to `out`, heads x dh) and
-// the weighted relation embedding (written to `rel_out`, heads x r).
+// copy each row for one use), the relation terms, softmax, then the weighted values (written to `out`, heads x dh,
+// which holds zeros) and the weighted relation embedding (written to `rel_out`, heads x r).
 void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set,
-                const KeyValueRows& kv, float scale, Mat& scores, TableTerms& table, float* out, float* rel_out) {
+                const KeyValueRows& kv, float scale, Mat& scores, std::vector<float>& inv, TableTerms& table,
+                float* out, float* rel_out) {
   const int m = static_cast<int>(set.keys.size());
   const int mp = set.posed();
   scores.resize(shape.heads, m);
@@ -91,15 +92,21 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
     kernel_relation_scores(shape, u, set.relation.data(), mp, scores.data(), m);
     if (mp < m) table.add_scores(set, u, shape.heads, shape.r, scores.data(), m);
   }
-  kernel_softmax_rows(scores.data(), shape.heads, m, m, scale);
+  // The weights stay unnormalised; the weighted sums are scaled by each head's 1 / sum instead (one pass fewer).
+  inv.resize(shape.heads);
+  kernel_softmax_rows(scores.data(), shape.heads, m, m, scale, inv.data());
   if (kv.half()) kernel_weighted_values_f16(shape, scores.data(), kv.vh, set.keys.data(), m, out);
   else kernel_weighted_values(shape, scores.data(), kv.v, set.keys.data(), m, out);
+  for (int h = 0; h < shape.heads; ++h)
+    for (int c = 0; c < shape.dh; ++c) out[h * shape.dh + c] *= inv[h];
   if (set.uniform) {  // the weights sum to one
     Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_runs[0].row);
     return;
   }
   kernel_weighted_relation(shape, scores.data(), set.relation.data(), mp, m, rel_out);
   if (mp < m) table.add_weighted(set, scores.data(), shape.heads, shape.r, m, rel_out);
+  for (int h = 0; h < shape.heads; ++h)
+    for (int c = 0; c < shape.r; ++c) rel_out[h * shape.r + c] *= inv[h];
 }
 
 }  // namespace
@@ -114,6 +121,7 @@ namespace {
 // A thread's scratch for the groups it runs.
 struct GroupScratch {
   Mat kg, vg, s, og, ug, rg, scores, qh;
+  std::vector<float> inv;  // 1 / the sum of each row's unnormalised weights (per head, or per query of a group)
   TableTerms table;
 };
 
@@ -156,8 +164,8 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     const int mp = set->posed();
     if (g <= 2) {
       for (int i : rows)
-        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, t.scores, t.table, o.row(i).data(),
-                   rel.row(i).data());
+        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, t.scores, t.inv, t.table,
+                   o.row(i).data(), rel.row(i).data());
       return;
     }
     // Keys 0..m-1 of k in order (a whole map) stored as floats: read in place; otherwise gather the rows once for
@@ -195,19 +203,21 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
         t.s.leftCols(mp).noalias() += t.ug * set->relation;
         if (mp < m) t.table.add_scores(*set, t.ug.data(), g, r, t.s.data(), m);
       }
-      kernel_softmax_rows(t.s.data(), g, m, m, scale);
+      t.inv.resize(g);
+      kernel_softmax_rows(t.s.data(), g, m, m, scale, t.inv.data());  // unnormalised, as in attend_one
       if (bf16) {
         t.og.resize(g, dh);
         bf16_linear(t.s.data(), g, kv.v_bf16[h], t.og.data());
       } else {
         t.og.noalias() = t.s * vv.middleCols(h * dh, dh);  // g x dh
       }
-      for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = t.og.row(c);
+      for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = t.og.row(c) * t.inv[c];
       if (set->uniform) {
         t.rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one
       } else {
         t.rg.noalias() = t.s.leftCols(mp) * set->relation.transpose();  // g x r
         if (mp < m) t.table.add_weighted(*set, t.s.data(), g, r, m, t.rg.data());
+        for (int c = 0; c < g; ++c) t.rg.row(c) *= t.inv[c];
       }
       for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c);
     }

@@ -58,12 +58,16 @@ void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, con
     }
 }
 
-void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale) {
+void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale, float* inv_sums) {
   for (int i = 0; i < rows; ++i) {
     float* row = s + static_cast<size_t>(i) * stride;
     const float top = *std::max_element(row, row + cols);
     float sum = 0;
     for (int j = 0; j < cols; ++j) sum += (row[j] = std::exp((row[j] - top) * scale));
+    if (inv_sums) {
+      inv_sums[i] = 1.0f / sum;
+      continue;
+    }
     for (int j = 0; j < cols; ++j) row[j] /= sum;
   }
 }
@@ -458,7 +462,7 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
   }
 }
 
-void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums) {
   // Whole vectors, the last one masked (its empty lanes read as -inf, whose exp is 0): no scalar exp for a tail.
   const __m512 lowest = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
   const int full = cols / 16;
@@ -482,7 +486,12 @@ void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) 
       _mm512_mask_storeu_ps(row + 16 * full, tail, e);
       sum = _mm512_add_ps(sum, e);
     }
-    const __m512 inv = _mm512_set1_ps(1.0f / _mm512_reduce_add_ps(sum));
+    const float inv_sum = 1.0f / _mm512_reduce_add_ps(sum);
+    if (inv_sums) {
+      inv_sums[i] = inv_sum;
+      continue;
+    }
+    const __m512 inv = _mm512_set1_ps(inv_sum);
     for (int b = 0; b < full; ++b) _mm512_storeu_ps(row + 16 * b, _mm512_mul_ps(_mm512_loadu_ps(row + 16 * b), inv));
     if (tail)
       _mm512_mask_storeu_ps(row + 16 * full, tail, _mm512_mul_ps(_mm512_maskz_loadu_ps(tail, row + 16 * full), inv));
@@ -641,8 +650,8 @@ inline float hsum(__m256 x) {
 
 }  // namespace
 
-void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
-  if (kernels_forced_plain()) return kernel_softmax_rows_plain(s, rows, cols, stride, scale);
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums) {
+  if (kernels_forced_plain()) return kernel_softmax_rows_plain(s, rows, cols, stride, scale, inv_sums);
   // Whole vectors, the last one masked (its empty lanes read as -inf, whose exp is 0): no scalar exp for a tail.
   const __m256 lowest = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
   const int full = cols / 8;
@@ -670,7 +679,12 @@ void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) 
       _mm256_maskstore_ps(row + 8 * full, tail, e);
       sum = _mm256_add_ps(sum, e);
     }
-    const __m256 inv = _mm256_set1_ps(1.0f / hsum(sum));
+    const float inv_sum = 1.0f / hsum(sum);
+    if (inv_sums) {
+      inv_sums[i] = inv_sum;
+      continue;
+    }
+    const __m256 inv = _mm256_set1_ps(inv_sum);
     for (int b = 0; b < full; ++b) _mm256_storeu_ps(row + 8 * b, _mm256_mul_ps(_mm256_loadu_ps(row + 8 * b), inv));
     if (rest)
       _mm256_maskstore_ps(row + 8 * full, tail, _mm256_mul_ps(_mm256_maskload_ps(row + 8 * full, tail), inv));
@@ -695,8 +709,8 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
                               float* out) {
   kernel_weighted_relation_plain(s, a, rel_t, m, stride, out);
 }
-void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale) {
-  kernel_softmax_rows_plain(s, rows, cols, stride, scale);
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums) {
+  kernel_softmax_rows_plain(s, rows, cols, stride, scale, inv_sums);
 }
 
 #endif

@@ -28,7 +28,9 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
                               float* out);
 
 // Each of `rows` rows of s (`cols` floats, rows `stride` apart) becomes softmax(scale * row), in place (scale > 0).
-void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale);
+// With `inv_sums` (rows floats), the rows are left unnormalised (exp of scale * (row - max)) and inv_sums[i] is the
+// reciprocal of row i's sum: a caller whose next step is linear in the weights scales its results instead.
+void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums = nullptr);
 
 // Keys and values stored as IEEE half floats (binary16, as uint16_t), converted to float for the math: the same
 // sums as the forms above on the converted rows.
@@ -53,7 +55,7 @@ void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const
                                   float* out);
 void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                                     float* out);
-void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale);
+void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale, float* inv_sums = nullptr);
 void kernel_key_scores_f16_plain(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
                                  float* scores);
 void kernel_weighted_values_f16_plain(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys,

@@ -108,6 +108,24 @@ TEST_P(KernelTest, FastFormsEqualPlainForms) {
     EXPECT_NEAR(sum, 1.0f, 1e-5f) << "head " << h;
     for (int j = m; j < stride; ++j) EXPECT_EQ(soft_fast[h * stride + j], 42.0f) << "padding of head " << h;
   }
+  // Unnormalised, with each row's 1 / sum returned: times it, the same weights (both forms).
+  for (const bool fast : {true, false}) {
+    std::vector<float> raw(static_cast<size_t>(s.heads) * stride, 42.0f), inv(s.heads, -1.0f);
+    for (int h = 0; h < s.heads; ++h)
+      for (int j = 0; j < m; ++j) raw[h * stride + j] = 30.0f * a[h * m + j];
+    if (fast) kernel_softmax_rows(raw.data(), s.heads, m, stride, 0.125f, inv.data());
+    else kernel_softmax_rows_plain(raw.data(), s.heads, m, stride, 0.125f, inv.data());
+    const std::vector<float>& normalised = fast ? soft_fast : soft_plain;
+    for (int h = 0; h < s.heads; ++h) {
+      float top = 0;
+      for (int j = 0; j < m; ++j) {
+        top = std::max(top, raw[h * stride + j]);
+        EXPECT_NEAR(raw[h * stride + j] * inv[h], normalised[h * stride + j], 1e-6f) << "head " << h << " key " << j;
+      }
+      EXPECT_EQ(top, 1.0f) << "the largest weight is exp(0), head " << h;
+      for (int j = m; j < stride; ++j) EXPECT_EQ(raw[h * stride + j], 42.0f) << "padding of head " << h;
+    }
+  }
 }
 
 // The vector conversion (F16C where the build has it) equals the software one bit for bit, rounds to nearest even,
