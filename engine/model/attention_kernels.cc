@@ -268,9 +268,9 @@ inline void store4(__m512 z, float* p0, float* p1, float* p2, float* p3) {
 // The low min(n, 16) lanes: a last, partial block of keys.
 inline __mmask16 first_lanes(int n) { return n >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << n) - 1); }
 
-// Asks for the cache lines of the part of row `key` the kernels read next (`bytes` from `p`): the keys of a query
-// are rows scattered over the cache, which the hardware prefetchers cannot guess, and the kernels otherwise wait on
-// each row's loads.
+// Asks for the cache lines of the `elems` elements from `p`, a part of a key or value row read a few keys later: a
+// query's keys are rows scattered over the cache, which the hardware prefetchers cannot guess, and the kernels
+// otherwise wait on each row's loads.
 template <typename T>
 inline void prefetch_row(const T* p, int elems) {
   const char* c = reinterpret_cast<const char*>(p);

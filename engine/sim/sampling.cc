@@ -36,7 +36,7 @@ int partition_around(std::vector<Candidate>& c, std::vector<Candidate>& below, i
   int left = lo, right = 0;
   int i = lo;
 #if defined(__AVX512F__)
-  // Compress-stores write c[left..] only below the block just loaded, and `below` is separate scratch.
+  // In place: c[left..] is written no further than the block just loaded (left <= i), whose keys are in x already.
   const __m512i pv = _mm512_set1_epi64(static_cast<long long>(pivot));
   __m512d acc = _mm512_setzero_pd();
   auto* data = reinterpret_cast<uint64_t*>(c.data());
