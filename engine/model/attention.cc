@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 
 #include "engine/model/attention_kernels.h"
 #include "engine/model/matmul_bf16.h"
@@ -125,6 +124,17 @@ struct GroupScratch {
   TableTerms table;
 };
 
+// What one call of relative_attention needs besides its result, kept by each calling thread from call to call: a
+// step calls it 8 times per batch, and allocating these each time (a map of groups, the groups' scratch) was 2-3 %
+// of a step. A pool serves one caller at a time, so the caller's workers[k] is worker k's alone during a call.
+struct CallScratch {
+  std::vector<std::pair<const QueryKeys*, int>> by_set;  // (key set, row), sorted: the groups are its runs
+  std::vector<int> rows;                                 // by_set's rows in its order; a group is a span of them
+  std::vector<std::pair<const QueryKeys*, std::span<const int>>> groups;
+  std::vector<GroupScratch> workers;  // per thread of the pool (one without a pool)
+};
+thread_local CallScratch call_scratch;
+
 }  // namespace
 
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
@@ -144,21 +154,30 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
   for (int h = 0; h < heads; ++h)
     u.middleCols(h * r, r).noalias() = q_rel.middleCols(h * dh, dh) * w_rk.middleRows(h * dh, dh);
 
-  // Queries reading the same key set go together. Each group writes its own rows of o and rel only, so groups may
-  // run on any thread in any order.
-  std::map<const QueryKeys*, std::vector<int>> by_set;
-  for (int i = 0; i < n; ++i) by_set[query_keys[i]].push_back(i);
-  std::vector<std::pair<const QueryKeys*, const std::vector<int>*>> groups;
-  for (const auto& [set, rows] : by_set)
-    if (!set->keys.empty()) groups.emplace_back(set, &rows);  // no keys: the output is the relation-value bias alone
+  // Queries reading the same key set go together: the rows sorted by key set (then by row), a group a run of them.
+  // Each group writes its own rows of o and rel only, so groups may run on any thread in any order.
+  CallScratch& cs = call_scratch;  // the calling thread's; the pool's workers reach it through this reference
+  cs.by_set.resize(n);
+  for (int i = 0; i < n; ++i) cs.by_set[i] = {query_keys[i], i};
+  std::sort(cs.by_set.begin(), cs.by_set.end());
+  cs.rows.resize(n);
+  for (int i = 0; i < n; ++i) cs.rows[i] = cs.by_set[i].second;
+  cs.groups.clear();
+  for (int i = 0, end; i < n; i = end) {
+    for (end = i + 1; end < n && cs.by_set[end].first == cs.by_set[i].first; ++end) {
+    }
+    if (!cs.by_set[i].first->keys.empty())  // no keys: the output is the relation-value bias alone
+      cs.groups.push_back({cs.by_set[i].first, std::span<const int>(cs.rows.data() + i, end - i)});
+  }
 
   Mat o = Mat::Zero(n, d);            // attention-weighted values
   Mat rel = Mat::Zero(n, heads * r);  // attention-weighted relation embeddings, projected by W_rv below
-  std::vector<GroupScratch> scratch(pool ? pool->threads() : 1);
+  const size_t workers = pool ? pool->threads() : 1;
+  if (cs.workers.size() < workers) cs.workers.resize(workers);
   auto run_group = [&](int group, int thread) {
-    const QueryKeys* set = groups[group].first;
-    const std::vector<int>& rows = *groups[group].second;
-    GroupScratch& t = scratch[thread];
+    const QueryKeys* set = cs.groups[group].first;
+    const std::span<const int> rows = cs.groups[group].second;
+    GroupScratch& t = cs.workers[thread];
     const int m = static_cast<int>(set->keys.size());
     const int g = static_cast<int>(rows.size());
     const int mp = set->posed();
@@ -222,7 +241,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c);
     }
   };
-  const int tasks = static_cast<int>(groups.size());
+  const int tasks = static_cast<int>(cs.groups.size());
   if (pool) pool->parallel_for(tasks, run_group);
   else
     for (int i = 0; i < tasks; ++i) run_group(i, 0);
