@@ -80,11 +80,11 @@ struct TableTerms {
 // copy each row for one use), the relation terms, softmax, then the weighted values (written to `out`, heads x dh,
 // which holds zeros) and the weighted relation embedding (written to `rel_out`, heads x r).
 void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set,
-                const KeyValueRows& kv, float scale, Mat& scores, std::vector<float>& inv, TableTerms& table,
+                const KeyValueRows& kv, float scale, std::vector<float>& scores, std::vector<float>& inv, TableTerms& table,
                 float* out, float* rel_out) {
   const int m = static_cast<int>(set.keys.size());
   const int mp = set.posed();
-  scores.resize(shape.heads, m);
+  scores.resize(static_cast<size_t>(shape.heads) * m);  // a vector: it keeps its capacity as m changes
   if (kv.half()) kernel_key_scores_f16(shape, q, kv.kh, set.keys.data(), m, scores.data());
   else kernel_key_scores(shape, q, kv.k, set.keys.data(), m, scores.data());
   if (!set.uniform) {
@@ -119,7 +119,8 @@ namespace {
 
 // A thread's scratch for the groups it runs.
 struct GroupScratch {
-  Mat kg, vg, s, og, ug, rg, scores, qh;
+  Mat kg, vg, s, og, ug, rg, qh;
+  std::vector<float> scores;  // attend_one's heads x m
   std::vector<float> inv;  // 1 / the sum of each row's unnormalised weights (per head, or per query of a group)
   TableTerms table;
 };
