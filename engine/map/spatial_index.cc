@@ -197,21 +197,24 @@ std::vector<int> SegmentIndex::within_radius(Vec2 p, double radius) const {
   return out;
 }
 
-std::vector<int> SegmentIndex::k_nearest(Vec2 p, int k) const {
+std::vector<int> SegmentIndex::k_nearest(Vec2 p, int k) const { return nearest(p, k, true); }
+
+std::vector<int> SegmentIndex::k_nearest_unordered(Vec2 p, int k) const { return nearest(p, k, false); }
+
+std::vector<int> SegmentIndex::nearest(Vec2 p, int k, bool sorted) const {
   std::vector<int> out;
   if (k <= 0 || nx_ == 0 || !finite(p)) return out;
   const int n = static_cast<int>(order_.size());
   RingQuery q;
   std::vector<Candidate> found;
   if (k >= n || !ring_query(p, min_x_, min_y_, cell_, nx_, ny_, q)) {
-    // Everything (or a far query): sort all by distance.
+    // Everything (or a far query): every segment, cut to the k nearest.
     found.reserve(n);
     for (int i : order_) found.push_back({dist2(p, centres_[i]), i});
     if (static_cast<int>(found.size()) > k) {
       std::nth_element(found.begin(), found.begin() + (k - 1), found.end());
       found.resize(k);
     }
-    std::sort(found.begin(), found.end());
   } else {
     // Gather ring by ring; once k are known, the k-th best distance bounds the search and the rest is dropped.
     for (int64_t r = q.r0; r <= q.r1; ++r) {
@@ -229,8 +232,8 @@ std::vector<int> SegmentIndex::k_nearest(Vec2 p, int k) const {
       std::nth_element(found.begin(), found.begin() + (k - 1), found.end());
       found.resize(k);
     }
-    std::sort(found.begin(), found.end());
   }
+  if (sorted) std::sort(found.begin(), found.end());
   out.reserve(found.size());
   for (const Candidate& c : found) out.push_back(c.second);
   return out;

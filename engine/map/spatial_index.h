@@ -21,10 +21,14 @@ class SegmentIndex {
   std::vector<int> within_radius(Vec2 p, double radius) const;
   // The `k` segments with centres nearest `p`, nearest first (fewer when the map has fewer).
   std::vector<int> k_nearest(Vec2 p, int k) const;
+  // The same segments in no particular order: for callers that order them their own way (a sort fewer).
+  std::vector<int> k_nearest_unordered(Vec2 p, int k) const;
 
   int size() const { return static_cast<int>(centres_.size()); }
 
  private:
+  std::vector<int> nearest(Vec2 p, int k, bool sorted) const;  // k_nearest, sorted or not
+
   // implementation-defined members (grid cells, centres, headings)
   std::vector<Vec2> centres_;
   std::vector<double> headings_;

@@ -91,7 +91,7 @@ void SelfKeySelector::select(int i, SelfKeys& out) {
 
 std::vector<int> map_keys_near(std::span<const MapSegment> segments, const SegmentIndex& index, Vec2 p,
                                const NeighbourLimit& limit) {
-  const std::vector<int> near = index.k_nearest(p, limit.k);
+  const std::vector<int> near = index.k_nearest_unordered(p, limit.k);  // the keys are sorted by index below
   std::vector<double> dist;
   std::vector<int64_t> order(near.begin(), near.end());
   for (int j : near) dist.push_back(distance(p, {segments[j].pose.x, segments[j].pose.y}));
