@@ -97,7 +97,12 @@ void check_against_brute_force(const std::vector<MapSegment>& segs, double cell,
     double r = ur(rng);
     ASSERT_EQ(index.within_radius(p, r), brute_within(segs, p, r)) << "query " << q << " radius " << r;
     int k = ks[q % 4];
-    ASSERT_EQ(index.k_nearest(p, k), brute_k(segs, p, k)) << "query " << q << " k " << k;
+    const std::vector<int> want = brute_k(segs, p, k);
+    ASSERT_EQ(index.k_nearest(p, k), want) << "query " << q << " k " << k;
+    std::vector<int> set = index.k_nearest_unordered(p, k), sorted_want = want;
+    std::sort(set.begin(), set.end());
+    std::sort(sorted_want.begin(), sorted_want.end());
+    ASSERT_EQ(set, sorted_want) << "unordered, query " << q << " k " << k;
   }
 }
 
