@@ -224,16 +224,23 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
           !boxes_overlap(now[i], now[j]))
         near.push_back(j);
   };
-  // Whether control `c` of agent i has no fault above `level` (faults as above; the road is looked at last, and
-  // only when it can decide: its queries cost the most).
-  const auto passes = [&](size_t i, const Next& c, int level) {
+  // The three parts of a control's test. Every level asks that its boxes clear the others' next and half-way boxes;
+  // level 0 also that they clear them while both brake to a stop; levels 0 and 1 that a vehicle on the road stays
+  // on it (the road is looked at last, and only when it can decide: its queries cost the most).
+  const auto clears_others = [&](const Next& c) {
+    for (size_t j : near)
+      if (boxes_overlap(c.box, next[j].box) || boxes_overlap(c.mid, next[j].mid)) return false;
+    return true;
+  };
+  const auto clears_braking = [&](const Next& c) {
     const double t_stop = std::abs(c.speed) / kRejectBrake;
     const Box stopped = moved(c.box, (t_stop / 2) * c.velocity);
-    for (size_t j : near) {
-      if (boxes_overlap(c.box, next[j].box) || boxes_overlap(c.mid, next[j].mid)) return false;
-      if (level < 1 && boxes_overlap(stopped, moved(next[j].box, t_stop * next[j].velocity))) return false;
-    }
-    if (level >= 2 || agents_[i].type != 0 || edges.empty()) return true;
+    for (size_t j : near)
+      if (boxes_overlap(stopped, moved(next[j].box, t_stop * next[j].velocity))) return false;
+    return true;
+  };
+  const auto keeps_road = [&](size_t i, const Next& c) {
+    if (agents_[i].type != 0 || edges.empty()) return true;
     if (keep_road[i] < 0) {
       edge_d[i] = edges.signed_distance(now[i].pose.x, now[i].pose.y, 0);
       keep_road[i] = on_road(now[i], edge_d[i], 0);
@@ -241,18 +248,48 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     return !keep_road[i] ||
            on_road(c.box, edge_d[i], distance({c.box.pose.x, c.box.pose.y}, {now[i].pose.x, now[i].pose.y}));
   };
+  // What is known of the controls of the agent being decided. A level that refuses every control hands them all to
+  // the next level, which asks only the parts it still checks, each part at most once per control.
+  struct Known {
+    Next next;
+    bool has_next = false;
+    int8_t clear = -1, braking = -1, road = -1;  // the parts' answers: 1 yes, 0 no, -1 not asked yet
+  };
+  std::vector<Known> known;  // by control, sized when first needed (most steps refuse no first draw)
+  std::vector<int> asked;    // the controls with an entry in `known`
+  const auto control_passes = [&](size_t i, int token, int level) {
+    if (known.empty()) known.resize(kMotionTokens);
+    Known& k = known[token];
+    if (!k.has_next) {
+      k.next = next_of(agents_[i], token);
+      k.has_next = true;
+      asked.push_back(token);
+    }
+    if (k.clear < 0) k.clear = clears_others(k.next);
+    if (!k.clear) return false;
+    if (level < 1) {
+      if (k.braking < 0) k.braking = clears_braking(k.next);
+      if (!k.braking) return false;
+    }
+    if (level >= 2) return true;
+    if (k.road < 0) k.road = keeps_road(i, k.next);
+    return k.road == 1;
+  };
   for (size_t i = 0; i < n; ++i) {
     Agent& a = agents_[i];
     if (a.controlled) continue;
     find_near(i);
-    if (passes(i, next[i], 0)) continue;
+    if (clears_others(next[i]) && clears_braking(next[i]) && keeps_road(i, next[i])) continue;
     int token = -1;
     for (int level = 0; level < 3 && token < 0; ++level)
       token = sample_token_if(row(i), options_.temperature, kRejectTopP, rng_,
-                              [&](int t) { return passes(i, next_of(a, t), level); });
-    if (token < 0) continue;
-    a.next_motion = token;
-    next[i] = next_of(a, token);
+                              [&](int t) { return control_passes(i, t, level); });
+    if (token >= 0) {
+      a.next_motion = token;
+      next[i] = known[token].next;
+    }
+    for (int t : asked) known[t] = Known{};
+    asked.clear();
   }
 }
 
