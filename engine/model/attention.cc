@@ -232,13 +232,14 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
         t.og.noalias() = t.s * vv.middleCols(h * dh, dh);  // g x dh
       }
       for (int c = 0; c < g; ++c) o.row(rows[c]).segment(h * dh, dh) = t.og.row(c) * t.inv[c];
-      if (set->uniform) {
-        t.rg = set->table->row(set->table_runs[0].row).replicate(g, 1);  // the weights sum to one
-      } else {
-        t.rg.noalias() = t.s.leftCols(mp) * set->relation.transpose();  // g x r
-        if (mp < m) t.table.add_weighted(*set, t.s.data(), g, r, m, t.rg.data());
-        for (int c = 0; c < g; ++c) t.rg.row(c) *= t.inv[c];
+      if (set->uniform) {  // the weights sum to one: each query's weighted relation is the table's one row
+        const auto only = set->table->row(set->table_runs[0].row);
+        for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = only;
+        continue;
       }
+      t.rg.noalias() = t.s.leftCols(mp) * set->relation.transpose();  // g x r
+      if (mp < m) t.table.add_weighted(*set, t.s.data(), g, r, m, t.rg.data());
+      for (int c = 0; c < g; ++c) t.rg.row(c) *= t.inv[c];
       for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c);
     }
   };
