@@ -3,9 +3,7 @@
 #pragma once
 
 #include <cstdint>
-#include <map>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 #include "engine/map/segments.h"
@@ -30,6 +28,8 @@ class SelfKeySelector {
   void select(int i, SelfKeys& out);
 
  private:
+  // A step's tokens by the lists a query reads, each ascending. Only what a fresh token can read is listed: lights
+  // and groups at the fresh tokens' steps, motion from the step before, bounds back to the window's start.
   struct Step {
     std::vector<int> lights, group, motion;
     std::vector<int> bounds;  // the group's SOS and EOS (also in `group`)
@@ -41,8 +41,10 @@ class SelfKeySelector {
   int cached_size_ = 0;
   int window_ = 0;
   NeighbourLimit limit_;
-  std::map<int, Step> steps_;
-  std::unordered_map<int64_t, std::vector<int>> objects_;
+  int first_step_ = 0;                           // the step of steps_[0]
+  std::vector<Step> steps_;                      // by step - first_step_
+  std::vector<int64_t> objects_;                 // the fresh tokens' objects, ascending, each once
+  std::vector<std::vector<int>> object_tokens_;  // by position in objects_: that object's tokens, ascending
   std::vector<int> seen_;  // the query that last took each key: candidates without a sort
   std::vector<uint64_t> posed_bits_, unposed_bits_;  // one query's kept keys by index (emitted in order, cleared)
   std::vector<int> candidates_, spatial_;
