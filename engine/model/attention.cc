@@ -36,6 +36,22 @@ Mat relation_columns(const Mat& features, const RelationParams& p) {
   return relation_embedding(features, p).transpose();
 }
 
+void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
+                          const RelationParams& p) {
+  Eigen::Index total = 0;
+  for (const std::vector<float>& f : features) total += static_cast<Eigen::Index>(f.size()) / kRelationFeatures;
+  Mat all(total, kRelationFeatures);
+  float* at = all.data();
+  for (const std::vector<float>& f : features) at = std::copy(f.begin(), f.end(), at);
+  const Mat h = relation_embedding(all, p);
+  Eigen::Index row = 0;
+  for (size_t i = 0; i < sets.size(); ++i) {
+    const Eigen::Index rows = static_cast<Eigen::Index>(features[i].size()) / kRelationFeatures;
+    sets[i]->relation = h.middleRows(row, rows).transpose();
+    row += rows;
+  }
+}
+
 Mat relation_by_step(const RelationParams& p, int steps) {
   Mat f = Mat::Zero(steps, kRelationFeatures);
   for (int dt = 0; dt < steps; ++dt) f(dt, 5) = static_cast<float>(dt) / 5.0f;  // as relation_features() writes it

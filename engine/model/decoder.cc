@@ -111,34 +111,40 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   std::vector<SelfKeySelector> selectors(1, SelfKeySelector(cache.tokens, tokens, config().window_steps, limit_));
   if (pool_ && n > 1) selectors.resize(pool_->threads(), selectors[0]);
   std::vector<SelfKeys> keys(selectors.size());
+  std::vector<QueryKeys*> sets(n);
+  std::vector<std::vector<float>> features(n);  // per query: its posed keys' relation features, row by row
   auto select = [&](int i, int thread) {
     SelfKeys& k = keys[thread];
     selectors[thread].select(i, k);
-    // Pairs with a position on both sides go through the relation MLP; the others depend only on the step
-    // difference and share the rows of the table.
+    // Pairs with a position on both sides go through the relation MLP (below, all queries at once); the others
+    // depend only on the step difference and share the rows of the table.
     auto set = std::make_shared<QueryKeys>();
     set->keys = k.posed;
     for (int j : k.unposed) set->add_table_row(tokens[i].step - token(j).step);
-    Mat f(set->keys.size(), kRelationFeatures);
+    std::vector<float>& f = features[i];
+    f.resize(set->keys.size() * kRelationFeatures);
     for (size_t e = 0; e < set->keys.size(); ++e) {
       const RelationFeatures rf = relation_features(fresh[i], anchor(set->keys[e]));
-      for (int col = 0; col < kRelationFeatures; ++col) f(e, col) = rf[col];
+      std::copy(rf.begin(), rf.end(), f.begin() + e * kRelationFeatures);
     }
-    set->relation = relation_columns(f, self_relation_);
     set->keys.insert(set->keys.end(), k.unposed.begin(), k.unposed.end());
     for (int& j : set->keys) j = cache.row(j);  // the attention reads keys and values at their ring rows
     set->table = &self_relation_by_step_;
+    sets[i] = set.get();
     out.per_query[i] = set.get();
     out.sets[i] = std::move(set);
   };
   if (selectors.size() > 1) pool_->parallel_for(n, select);
   else
     for (int i = 0; i < n; ++i) select(i, 0);
+  set_relation_columns(sets, features, self_relation_);
   return out;
 }
 
 Model::KeySets Model::cross_keys(const MapContext& map, KvCache& cache, std::span<const DecoderToken> tokens) const {
   KeySets out;
+  std::vector<QueryKeys*> fresh_sets;           // the sets made by this call
+  std::vector<std::vector<float>> features;     // their posed keys' relation features
   const int m = map.size();
   const QueryKeys* whole_map = nullptr;  // for queries without a position: every segment, no spatial relation
   for (const DecoderToken& q : tokens) {
@@ -163,17 +169,18 @@ Model::KeySets Model::cross_keys(const MapContext& map, KvCache& cache, std::spa
       set->keys = map_keys_near(map.segments, map.index, {q.pose.x, q.pose.y}, limit_);
       // Map tokens are static: they carry the query's step, so the step difference is 0.
       const Anchor qa(true, q.pose, 0);
-      Mat f(set->keys.size(), kRelationFeatures);
+      std::vector<float>& f = features.emplace_back(set->keys.size() * kRelationFeatures);
       for (size_t j = 0; j < set->keys.size(); ++j) {
         const RelationFeatures rf = relation_features(qa, map.anchors[set->keys[j]]);
-        for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
+        std::copy(rf.begin(), rf.end(), f.begin() + j * kRelationFeatures);
       }
-      set->relation = relation_columns(f, cross_relation_);
+      fresh_sets.push_back(set.get());  // its relation columns: below, with the other new sets'
       entry.keys = set;
       out.sets.push_back(std::move(set));
     }
     out.per_query.push_back(entry.keys.get());
   }
+  set_relation_columns(fresh_sets, features, cross_relation_);
   // Poses not read at the newest step (an agent that moved, a light gone) are not kept.
   const int newest = tokens.back().step;
   std::erase_if(cache.cross_keys, [&](const auto& e) { return e.second.last_step < newest; });
