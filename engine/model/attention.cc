@@ -38,14 +38,18 @@ Mat relation_columns(const Mat& features, const RelationParams& p) {
 
 void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
                           const RelationParams& p) {
-  // In chunks of about kChunkRows rows, so that a chunk's embeddings (kChunkRows x relation_dim floats, 256 KB) are
-  // still in the core's cache when they are copied out: one product for a whole call's pairs (40,000 in a busy
-  // server's steps) made the server slower and its memory larger.
-  constexpr size_t kChunkRows = 2048;
+  // In chunks of about 2,048 rows, so that a chunk's embeddings (2,048 x relation_dim floats, 256 KB) are still in
+  // the core's cache when they are copied out: one product for a whole call's pairs (40,000 in a busy server's
+  // steps) made the server slower and its memory larger. Only when the second layer runs in bf16 on AMX: a row's
+  // bits then do not depend on the rows beside it (as for the first layer's 7-deep fp32 product; tested), while
+  // Eigen's fp32 product of the second layer gives a row other bits in another batch. Each set alone then, as a
+  // set's columns must not depend on the call it is made in: a restored session rebuilds its cache's map key sets
+  // in other calls than the first run made them in, and must continue bit for bit.
+  const size_t chunk_rows = p.fc2.bf16 ? 2048 : 0;
   Mat chunk;
   for (size_t first = 0; first < sets.size();) {
     size_t last = first, rows = 0;
-    while (last < sets.size() && (last == first || rows + features[last].size() / kRelationFeatures <= kChunkRows))
+    while (last < sets.size() && (last == first || rows + features[last].size() / kRelationFeatures <= chunk_rows))
       rows += features[last++].size() / kRelationFeatures;
     chunk.resize(static_cast<Eigen::Index>(rows), kRelationFeatures);
     float* at = chunk.data();

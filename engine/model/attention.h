@@ -50,9 +50,10 @@ Mat relation_embedding(const Mat& features, const RelationParams& p);
 // The same, key-major as QueryKeys::relation holds it (relation_dim x m): the rows above, transposed.
 Mat relation_columns(const Mat& features, const RelationParams& p);
 struct QueryKeys;
-// Each set's relation columns from its feature rows (features[i]: set i's posed keys x kRelationFeatures, row-major):
-// the rows of every set through the relation MLP at once, then each set's block transposed into sets[i]->relation.
-// One product per MLP layer for a decode call instead of one per query, whose set-up cost more than its arithmetic.
+// Each set's relation columns from its feature rows (features[i]: set i's posed keys x kRelationFeatures, row-major),
+// the same bits as relation_columns on each alone. With the MLP's second layer in bf16, many sets' rows go through
+// it at once (one product per layer for a chunk of sets instead of one per query, whose set-up cost more than its
+// arithmetic); in fp32, each set alone.
 void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
                           const RelationParams& p);
 // h for a pair of which at least one side has no position: it depends only on the step difference dt. Row dt
