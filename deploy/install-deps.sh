@@ -29,7 +29,7 @@ ALL="$BUILD
   libtorch-dev libopenblas0-openmp
   python3-torch
 "
-# libjemalloc-dev: the server's allocator (server/allocator.h), linked in place of glibc's malloc.
+# libjemalloc-dev: the allocator of the server and the tools (server/allocator.h), linked in place of glibc's malloc.
 # python3-numpy, -setuptools, -wheel and -venv: the Python package (python/), its build and its install test.
 # libtorch-dev and libopenblas0-openmp join this list with the trainer (training/), which is the only part that needs
 # them: they pull in ~330 shared libraries. python3-torch (on top of libtorch): the PPO example
