@@ -109,8 +109,8 @@ struct TableTerms {
 // copy each row for one use), the relation terms, softmax, then the weighted values (written to `out`, heads x dh,
 // which holds zeros) and the weighted relation embedding (written to `rel_out`, heads x r).
 void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set,
-                const KeyValueRows& kv, float scale, std::vector<float>& scores, std::vector<float>& inv, TableTerms& table,
-                float* out, float* rel_out) {
+                const KeyValueRows& kv, float scale, std::vector<float>& scores, std::vector<float>& inv,
+                TableTerms& table, float* out, float* rel_out) {
   const int m = static_cast<int>(set.keys.size());
   const int mp = set.posed();
   scores.resize(static_cast<size_t>(shape.heads) * m);  // a vector: it keeps its capacity as m changes

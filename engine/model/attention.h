@@ -49,13 +49,6 @@ RelationFeatures relation_features(const Anchor& q, const Anchor& k);
 Mat relation_embedding(const Mat& features, const RelationParams& p);
 // The same, key-major as QueryKeys::relation holds it (relation_dim x m): the rows above, transposed.
 Mat relation_columns(const Mat& features, const RelationParams& p);
-struct QueryKeys;
-// Each set's relation columns from its feature rows (features[i]: set i's posed keys x kRelationFeatures, row-major),
-// the same bits as relation_columns on each alone. With the MLP's second layer in bf16, many sets' rows go through
-// it at once (one product per layer for a chunk of sets instead of one per query, whose set-up cost more than its
-// arithmetic); in fp32, each set alone.
-void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
-                          const RelationParams& p);
 // h for a pair of which at least one side has no position: it depends only on the step difference dt. Row dt
 // (0 <= dt < steps) of the result (steps x relation_dim) is h of f = (0, 0, 0, 0, 0, dt / 5, 0).
 Mat relation_by_step(const RelationParams& p, int steps);
@@ -84,6 +77,13 @@ struct QueryKeys {
     else table_runs.push_back({row, 1});
   }
 };
+
+// Each set's relation columns from its feature rows (features[i]: set i's posed keys x kRelationFeatures, row-major),
+// the same bits as relation_columns on each alone. With the MLP's second layer in bf16, many sets' rows go through
+// it at once (one product per layer for a chunk of sets instead of one per query, whose set-up cost more than its
+// arithmetic); in fp32, each set alone.
+void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
+                          const RelationParams& p);
 
 // The keys and values attention may read: rows of two row-major matrices (d floats per row), stored as floats or as
 // half floats (binary16; the math converts them to float).

@@ -116,8 +116,8 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   auto select = [&](int i, int thread) {
     SelfKeys& k = keys[thread];
     selectors[thread].select(i, k);
-    // Pairs with a position on both sides go through the relation MLP (below, all queries at once); the others
-    // depend only on the step difference and share the rows of the table.
+    // Pairs with a position on both sides go through the relation MLP (below, set_relation_columns, for all the
+    // queries); the others depend only on the step difference and share the rows of the table.
     auto set = std::make_shared<QueryKeys>();
     set->keys = k.posed;
     for (int j : k.unposed) set->add_table_row(tokens[i].step - token(j).step);
@@ -143,8 +143,8 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
 
 Model::KeySets Model::cross_keys(const MapContext& map, KvCache& cache, std::span<const DecoderToken> tokens) const {
   KeySets out;
-  std::vector<QueryKeys*> fresh_sets;           // the sets made by this call
-  std::vector<std::vector<float>> features;     // their posed keys' relation features
+  std::vector<QueryKeys*> fresh_sets;        // the sets made by this call
+  std::vector<std::vector<float>> features;  // their posed keys' relation features
   const int m = map.size();
   const QueryKeys* whole_map = nullptr;  // for queries without a position: every segment, no spatial relation
   for (const DecoderToken& q : tokens) {

@@ -255,7 +255,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     bool has_next = false;
     int8_t clear = -1, braking = -1, road = -1;  // the parts' answers: 1 yes, 0 no, -1 not asked yet
   };
-  std::vector<Known> known;  // by control, sized when first needed (most steps refuse no first draw)
+  std::vector<Known> known;  // by control, sized when first needed (in most steps every first draw passes)
   std::vector<int> asked;    // the controls with an entry in `known`
   const auto control_passes = [&](size_t i, int token, int level) {
     if (known.empty()) known.resize(kMotionTokens);
