@@ -268,8 +268,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       }
       t.rg.noalias() = t.s.leftCols(mp) * set->relation.transpose();  // g x r
       if (mp < m) t.table.add_weighted(*set, t.s.data(), g, r, m, t.rg.data());
-      for (int c = 0; c < g; ++c) t.rg.row(c) *= t.inv[c];
-      for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c);
+      for (int c = 0; c < g; ++c) rel.row(rows[c]).segment(h * r, r) = t.rg.row(c) * t.inv[c];
     }
   };
   const int tasks = static_cast<int>(cs.groups.size());
