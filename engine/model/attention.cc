@@ -146,6 +146,20 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
 
 namespace {
 
+// Asks for the cache lines of a key set's first 32 relation columns (two lines of each of its rows). A busy server's
+// decode call builds megabytes of relation columns, more than the core's cache, so each layer's attention reads them
+// from memory; the relation-score kernel asks for its next 32 keys' lines as it goes, and this covers the start of
+// the next group's set while the current group runs. (Asking for a whole set at once stalled on the core's queue of
+// pending loads.)
+void prefetch_relation_start(const QueryKeys& set) {
+  const int mp = set.posed();
+  const float* h = set.relation.data();
+  for (int c = 0; c < set.relation.rows() && mp > 0; ++c) {
+    __builtin_prefetch(h + c * mp);
+    if (mp > 16) __builtin_prefetch(h + c * mp + 16);
+  }
+}
+
 // A thread's scratch for the groups it runs.
 struct GroupScratch {
   Mat kg, vg, s, og, ug, rg, qh;
@@ -211,6 +225,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     const int m = static_cast<int>(set->keys.size());
     const int g = static_cast<int>(rows.size());
     const int mp = set->posed();
+    if (group + 1 < static_cast<int>(cs.groups.size())) prefetch_relation_start(*cs.groups[group + 1].first);
     if (g <= 2) {
       for (int i : rows)
         attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, t.scores, t.inv, t.table,
