@@ -105,15 +105,39 @@ struct TableTerms {
   }
 };
 
+// Relation columns are read once per layer, and a busy server's decode call builds megabytes of them (more than the
+// core's cache), so without help the relation-score kernel waits on memory for each query's (perf: two thirds of its
+// samples on its loads). attend_one asks for the next query's columns in four parts between its own phases; asking
+// for all of a set's lines at once stalled on the core's few pending-load slots.
+void prefetch_relation_part(const QueryKeys* set, int part, int parts) {
+  if (!set) return;
+  const char* h = reinterpret_cast<const char*>(set->relation.data());
+  const size_t lines = (static_cast<size_t>(set->relation.size()) * sizeof(float) + 63) / 64;
+  for (size_t l = lines * part / parts; l < lines * (part + 1) / parts; ++l) __builtin_prefetch(h + l * 64);
+}
+
+// The same for the start of the next group's set (two lines of each of its rows), while a group of queries runs its
+// products.
+void prefetch_relation_start(const QueryKeys& set) {
+  const int mp = set.posed();
+  const float* h = set.relation.data();
+  for (int c = 0; c < set.relation.rows() && mp > 0; ++c) {
+    __builtin_prefetch(h + c * mp);
+    if (mp > 16) __builtin_prefetch(h + c * mp + 16);
+  }
+}
+
 // One query with its own key set, all heads at once: scores (heads x m) from the key rows in place (a gather would
 // copy each row for one use), the relation terms, softmax, then the weighted values (written to `out`, heads x dh,
-// which holds zeros) and the weighted relation embedding (written to `rel_out`, heads x r).
+// which holds zeros) and the weighted relation embedding (written to `rel_out`, heads x r). `next`: the key set of
+// the query that runs next on this thread, if another, whose relation columns are asked for on the way.
 void attend_one(const AttentionShape& shape, const float* q, const float* u, const QueryKeys& set,
                 const KeyValueRows& kv, float scale, std::vector<float>& scores, std::vector<float>& inv,
-                TableTerms& table, float* out, float* rel_out) {
+                TableTerms& table, float* out, float* rel_out, const QueryKeys* next) {
   const int m = static_cast<int>(set.keys.size());
   const int mp = set.posed();
   scores.resize(static_cast<size_t>(shape.heads) * m);  // a vector: it keeps its capacity as m changes
+  prefetch_relation_part(next, 0, 4);
   if (kv.half()) kernel_key_scores_f16(shape, q, kv.kh, set.keys.data(), m, scores.data());
   else kernel_key_scores(shape, q, kv.k, set.keys.data(), m, scores.data());
   if (!set.uniform) {
@@ -122,11 +146,14 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
   }
   // The weights stay unnormalised; the weighted sums are scaled by each head's 1 / sum instead (one pass fewer).
   inv.resize(shape.heads);
+  prefetch_relation_part(next, 1, 4);
   kernel_softmax_rows(scores.data(), shape.heads, m, m, scale, inv.data());
+  prefetch_relation_part(next, 2, 4);
   if (kv.half()) kernel_weighted_values_f16(shape, scores.data(), kv.vh, set.keys.data(), m, out);
   else kernel_weighted_values(shape, scores.data(), kv.v, set.keys.data(), m, out);
   for (int h = 0; h < shape.heads; ++h)
     for (int c = 0; c < shape.dh; ++c) out[h * shape.dh + c] *= inv[h];
+  prefetch_relation_part(next, 3, 4);
   if (set.uniform) {  // the weights sum to one
     Eigen::Map<Mat>(rel_out, shape.heads, shape.r).rowwise() = set.table->row(set.table_runs[0].row);
     return;
@@ -145,20 +172,6 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
 }
 
 namespace {
-
-// Asks for the cache lines of a key set's first 32 relation columns (two lines of each of its rows). A busy server's
-// decode call builds megabytes of relation columns, more than the core's cache, so each layer's attention reads them
-// from memory; the relation-score kernel asks for its next 32 keys' lines as it goes, and this covers the start of
-// the next group's set while the current group runs. (Asking for a whole set at once stalled on the core's queue of
-// pending loads.)
-void prefetch_relation_start(const QueryKeys& set) {
-  const int mp = set.posed();
-  const float* h = set.relation.data();
-  for (int c = 0; c < set.relation.rows() && mp > 0; ++c) {
-    __builtin_prefetch(h + c * mp);
-    if (mp > 16) __builtin_prefetch(h + c * mp + 16);
-  }
-}
 
 // A thread's scratch for the groups it runs.
 struct GroupScratch {
@@ -225,13 +238,14 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
     const int m = static_cast<int>(set->keys.size());
     const int g = static_cast<int>(rows.size());
     const int mp = set->posed();
-    if (group + 1 < static_cast<int>(cs.groups.size())) prefetch_relation_start(*cs.groups[group + 1].first);
-    if (g <= 2) {
-      for (int i : rows)
-        attend_one(shape, q.row(i).data(), u.row(i).data(), *set, kv, scale, t.scores, t.inv, t.table,
-                   o.row(i).data(), rel.row(i).data());
+    const QueryKeys* next = group + 1 < static_cast<int>(cs.groups.size()) ? cs.groups[group + 1].first : nullptr;
+    if (g <= 2) {  // the last query asks for the next set's relation columns as it goes
+      for (int c = 0; c < g; ++c)
+        attend_one(shape, q.row(rows[c]).data(), u.row(rows[c]).data(), *set, kv, scale, t.scores, t.inv, t.table,
+                   o.row(rows[c]).data(), rel.row(rows[c]).data(), c == g - 1 ? next : nullptr);
       return;
     }
+    if (next) prefetch_relation_start(*next);
     // Keys 0..m-1 of k in order (a whole map) stored as floats: read in place; otherwise gather the rows once for
     // the group (converting half floats).
     const bool identity = !kv.half() && m == kv.rows && std::is_sorted(set->keys.begin(), set->keys.end()) &&

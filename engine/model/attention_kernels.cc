@@ -277,7 +277,6 @@ inline void prefetch_row(const T* p, int elems) {
   for (int b = 0; b < elems * static_cast<int>(sizeof(T)); b += 64) _mm_prefetch(c + b, _MM_HINT_T0);
 }
 constexpr int kPrefetchKeys = 8;  // how far ahead of the key being read
-constexpr int kPrefetchRelationKeys = 32;  // how far ahead of the block of keys being read (relation columns)
 
 // Sixteen key or value elements as floats: loaded, or converted from half floats.
 inline __m512 load16(const float* p) { return _mm512_loadu_ps(p); }
@@ -409,13 +408,7 @@ void kernel_relation_scores(const AttentionShape& s, const float* u, const float
         acc[2 * g] = _mm512_loadu_ps(sh + g * stride + j);
         acc[2 * g + 1] = _mm512_loadu_ps(sh + g * stride + j + 16);
       }
-      // Relation columns are read once per layer, often from memory (a busy server's call holds megabytes of them).
-      const bool ahead = h == 0 && j + kPrefetchRelationKeys < m;
       for (int c = 0; c < r; ++c) {
-        if (ahead) {
-          _mm_prefetch(reinterpret_cast<const char*>(rel_t + c * m + j + kPrefetchRelationKeys), _MM_HINT_T0);
-          _mm_prefetch(reinterpret_cast<const char*>(rel_t + c * m + j + kPrefetchRelationKeys + 16), _MM_HINT_T0);
-        }
         const __m512 x0 = _mm512_loadu_ps(rel_t + c * m + j), x1 = _mm512_loadu_ps(rel_t + c * m + j + 16);
         for (int g = 0; g < 4; ++g) {
           const __m512 w = _mm512_set1_ps(uh[g * r + c]);
