@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -59,7 +61,8 @@ TEST(FairSlots, AWaiterThatGivesUpLeavesTheSlotToTheNext) {
   FairSlots s(1);
   ASSERT_TRUE(s.acquire_until(Clock::now()));
   std::atomic<bool> late_got{false};
-  std::thread early([&] { EXPECT_FALSE(s.acquire_until(Clock::now() + std::chrono::milliseconds(50))); });
+  // A second, so that `late` is surely waiting behind it before it gives up, even on a loaded machine.
+  std::thread early([&] { EXPECT_FALSE(s.acquire_until(Clock::now() + std::chrono::seconds(1))); });
   wait_for_waiters(s, 1);
   std::thread late([&] {
     late_got = s.acquire_until(Clock::now() + std::chrono::seconds(30));
