@@ -37,7 +37,7 @@ ABSL_FLAG(int, max_sessions, 256, "Cap on sessions in memory");
 ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state), MiB");
 ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
 ABSL_FLAG(double, evict_idle_s, 30, "A session unused this long may be evicted (least recently used first) for room");
-ABSL_FLAG(int, threads, 0, "Engine calls running at once; 0: the number of cores");
+ABSL_FLAG(int, threads, 0, "Compute threads (engine calls running at once); 0: the number of cores");
 ABSL_FLAG(int, step_threads, 1,
           "Threads one session's step may use (its attention shared out; same results at any count). For few "
           "sessions on many cores: a step that finds them busy runs on its own thread");

@@ -52,7 +52,7 @@ struct ManagedSession {
   bool closed = false;
 
   void touch() { last_used = Clock::now().time_since_epoch().count(); }
-  // 0 while a call is in progress: a call that waits (for a compute slot under load, or for the other controllers
+  // 0 while a call is in progress: a call that waits (for a compute thread under load, or for the other controllers
   // of a multi-client tick) must not have its session closed or evicted under it by the idle rules.
   double idle_seconds() const {
     if (calls > 0) return 0;
@@ -84,7 +84,7 @@ struct InCall {
 };
 
 SessionManager::SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics)
-    : engine_(engine), options_(std::move(options)), metrics_(metrics), slots_(std::max(1, options_.compute_threads)) {
+    : engine_(engine), options_(std::move(options)), metrics_(metrics), compute_(std::max(1, options_.compute_threads), engine_thread_init) {
   reaper_ = std::thread([this] { reaper(); });
 }
 
@@ -94,16 +94,7 @@ SessionManager::~SessionManager() {
 }
 
 absl::Status SessionManager::compute(Clock::time_point deadline, const std::function<absl::Status()>& fn) {
-  if (!slots_.acquire_until(deadline))
-    return absl::DeadlineExceededError("the call's deadline passed while waiting for a compute thread");
-  thread_local bool initialised = false;
-  if (!initialised) {
-    engine_thread_init();
-    initialised = true;
-  }
-  absl::Status st = fn();
-  slots_.release();
-  return st;
+  return compute_.run(deadline, fn);
 }
 
 int SessionManager::count() {
@@ -343,8 +334,8 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
                                                   std::to_string(tick), ")"));
     }
     StepResult view;
-    // One compute slot per tick, not per call: a long call hands the slot over between its ticks, so a short call on
-    // another session waits for one tick rather than for all of them.
+    // A compute call per tick, not one for the whole request: a long request queues again between its ticks, so a
+    // short request on another session waits for one tick rather than for all of them.
     absl::Status st = compute(deadline, [&]() -> absl::Status {
       const auto t0 = Clock::now();
       auto r = session_tick(*s.session, controls_now);

@@ -18,7 +18,7 @@
 
 #include "absl/status/statusor.h"
 #include "engine/scenestreamer.h"
-#include "server/fair_slots.h"
+#include "server/compute_queue.h"
 #include "server/metrics.h"
 #include "server/snapshot.h"
 
@@ -147,9 +147,9 @@ class SessionManager {
   absl::Status save(ManagedSession& s);
   absl::StatusOr<std::shared_ptr<ManagedSession>> restore_snapshot(const std::string& id, Clock::time_point deadline);
   absl::StatusOr<std::shared_ptr<ManagedSession>> restore_from(Snapshot snap, Clock::time_point deadline);
-  // Runs `fn` on a compute slot (bounded by compute_threads), or DEADLINE_EXCEEDED when none frees up in time.
+  // Runs `fn` on a compute thread (compute_threads of them), or DEADLINE_EXCEEDED when none takes it in time.
   absl::Status compute(Clock::time_point deadline, const std::function<absl::Status()>& fn);
-  // Runs n ticks, each on a compute slot of its own, appending each tick's view to `out`. Stops between ticks
+  // Runs n ticks, each a compute call of its own, appending each tick's view to `out`. Stops between ticks
   // (DEADLINE_EXCEEDED, CANCELLED) once the deadline passed or `cancelled()` says the client is gone.
   absl::Status run_ticks(ManagedSession& s, const std::vector<ControlInput>& controls, int n,
                          Clock::time_point deadline, const std::function<bool()>& cancelled,
@@ -170,7 +170,6 @@ class SessionManager {
   Engine& engine_;
   ManagerOptions options_;
   Metrics& metrics_;
-  FairSlots slots_;
   std::mutex mu_;
   std::map<std::string, std::shared_ptr<ManagedSession>> sessions_;
   std::map<std::string, std::string> evicted_;  // id -> tenant: saved to the snapshot directory, restored on next call
@@ -179,6 +178,7 @@ class SessionManager {
   std::atomic<bool> stop_{false};
   std::atomic<int> closed_since_trim_{0};  // sessions closed or evicted since the reaper's last malloc_trim
   std::thread reaper_;
+  ComputeQueue compute_;  // last: its threads stop first
 };
 
 }  // namespace ss::server

@@ -1,6 +1,6 @@
 """Integration tests of session state and caps against the real server binary: every tick asked for is returned,
 caps hold while sessions fork, grow and come back, a close wins over a restore, snapshots are checked and kept, and
-compute slots are shared between long and short calls."""
+compute threads are shared between long and short calls."""
 import os
 import shutil
 import tempfile
@@ -51,8 +51,8 @@ class TicksTest(unittest.TestCase):
 
 
 class SlotsTest(unittest.TestCase):
-    def test_a_long_call_hands_the_compute_slot_over_between_ticks(self):
-        # One compute slot: a 1-tick call on another session waits for about one tick of the long call, not for all
+    def test_a_long_call_hands_the_compute_thread_over_between_ticks(self):
+        # One compute thread: a 1-tick call on another session waits for about one tick of the long call, not for all
         # of them (once two 400-tick calls made a 1-tick call wait 16.5 s).
         with Server("--threads=1", "--evict_idle_s=1000") as srv:
             name = first_scenario(srv.stub)

@@ -158,7 +158,7 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   EXPECT_NE(bad.status().message().find("123456789"), std::string::npos);
 }
 
-// A call that waits is use: under load a call once waited longer than --idle_timeout_s for a compute slot and the
+// A call that waits is use: under load a call once waited longer than --idle_timeout_s for a compute thread and the
 // idle rule closed its session under it. Here the wait is a multi-client tick's for its second controller.
 TEST_F(ManagerTest, ASessionWithACallWaitingIsNotIdle) {
   ManagerOptions o;
