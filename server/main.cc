@@ -156,6 +156,7 @@ int main(int argc, char** argv) {
   metrics.sessions = [&] { return sessions.count(); };
   metrics.cache_bytes = [&] { return sessions.total_bytes(); };
   metrics.watchers = [&] { return sessions.watchers(); };
+  metrics.compute_queued = [&] { return sessions.compute_queued(); };
   if (!mo.snapshot_dir.empty()) {
     const int n = sessions.restore_all();
     spdlog::info("restored {} sessions from {}", n, mo.snapshot_dir);

@@ -40,6 +40,9 @@ class Metrics::Gauges : public prometheus::Collectable {
             family("scenestreamer_cache_bytes", "Bytes held by sessions (KV caches and state).",
                    m_.cache_bytes ? static_cast<double>(m_.cache_bytes()) : 0),
             family("scenestreamer_watchers", "WatchSession streams open.", m_.watchers ? m_.watchers() : 0),
+            // Above zero for long: the compute threads are the bottleneck (more replicas, or a smaller model).
+            family("scenestreamer_compute_queued", "Engine calls (ticks, creates, forks) waiting for a compute thread.",
+                   m_.compute_queued ? m_.compute_queued() : 0),
             // What RSS is made of (server/allocator.h): bytes in use vs bytes the allocator holds beyond them.
             family("scenestreamer_malloc_in_use_bytes",
                    "Bytes allocated with malloc and not freed (jemalloc stats.allocated).", static_cast<double>(a.in_use)),

@@ -29,6 +29,7 @@ class Metrics {
   std::function<int()> sessions;
   std::function<uint64_t()> cache_bytes;
   std::function<int()> watchers;
+  std::function<int()> compute_queued;
 
   // Serves GET /metrics on host:port (0: a free port) until the Metrics is destroyed; returns the port.
   absl::StatusOr<int> serve(const std::string& host, int port);

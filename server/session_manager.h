@@ -120,6 +120,8 @@ class SessionManager {
   // A stream registered by watch_add is over (its place under --max_watchers is free again). Takes no lock.
   void watch_done() { --watchers_; }
   int watchers() const { return watchers_; }
+  // Engine calls waiting for a compute thread.
+  int compute_queued() { return compute_.waiting(); }
 
   // Refuses new work and ends every watch stream.
   void start_draining();

@@ -13,8 +13,8 @@ namespace {
 
 #if defined(__AVX512F__)
 // y = x W^T for inputs less than 8 wide (the relation MLP's 7 features) and outputs in whole vectors: each output a
-// chain of FMAs in input order from zero, the order Eigen's product takes below its 8-deep unrolling (so the same
-// bits; tests/unit/model/linalg_test.cc), without the GEMM's packing, which was most of its cost at this depth.
+// chain of FMAs in input order from zero, the order Eigen's GEMM takes below its 8-deep unrolling (the same bits in
+// tests/unit/model/linalg_test.cc), without the GEMM's packing, which was most of its cost at this depth.
 constexpr int kShallowDepth = 8;
 bool shallow(const LinearParams& p) { return p.in < kShallowDepth && p.out % 16 == 0; }
 

@@ -442,7 +442,7 @@ class MetricsTest(unittest.TestCase):
                 text = urllib.request.urlopen(f"http://127.0.0.1:{srv.metrics_port}/metrics", timeout=30).read()
                 self.assertLess(time.time() - t, 2.0)
                 for name in (b"scenestreamer_sessions", b"scenestreamer_cache_bytes", b"scenestreamer_watchers",
-                             b"scenestreamer_calls_total"):
+                             b"scenestreamer_compute_queued", b"scenestreamer_calls_total"):
                     self.assertIn(name, text)
             finally:
                 for c in idle:

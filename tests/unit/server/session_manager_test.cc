@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <thread>
 
@@ -71,6 +73,37 @@ TEST_F(ManagerTest, TheSessionCapHoldsWithAClearError) {
   EXPECT_EQ(m.count(), 2);
   auto f = m.fork("a", "", "", soon());
   EXPECT_EQ(f.status().code(), absl::StatusCode::kResourceExhausted);
+}
+
+// With one compute thread, a long multi-tick call and one-tick calls on another session take turns: the queue the
+// scenestreamer_compute_queued gauge reports holds one of them while the other's tick runs, and then empties.
+TEST_F(ManagerTest, TheComputeQueueGaugeCountsCallsWaitingForAComputeThread) {
+  ManagerOptions o;
+  o.compute_threads = 1;
+  SessionManager m(*engine_, o, metrics_);
+  metrics_.compute_queued = [&] { return m.compute_queued(); };
+  ASSERT_TRUE(create(m, "long").ok());
+  ASSERT_TRUE(create(m, "short").ok());
+  EXPECT_EQ(m.compute_queued(), 0);
+  std::atomic<bool> long_done{false};
+  std::thread long_call([&] {
+    EXPECT_TRUE(m.step("long", "", "", {}, 40, soon()).ok());
+    long_done = true;
+  });
+  std::thread short_call([&] {  // one-tick calls for as long as the long call runs, whichever starts first
+    while (!long_done) EXPECT_TRUE(m.step("short", "", "", {}, 1, soon()).ok());
+  });
+  int most = 0;
+  while (!long_done && most < 1) {
+    most = std::max(most, m.compute_queued());
+    std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  long_call.join();
+  short_call.join();
+  EXPECT_EQ(most, 1);
+  EXPECT_EQ(m.compute_queued(), 0);
+  EXPECT_NE(metrics_.render().find("\nscenestreamer_compute_queued 0"), std::string::npos) << metrics_.render();
+  metrics_.compute_queued = nullptr;
 }
 
 // The reaper gives freed memory back to the kernel once sessions closed, at most every --malloc_trim_s, and not while
