@@ -138,7 +138,7 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
   const int mp = set.posed();
   scores.resize(static_cast<size_t>(shape.heads) * m);  // a vector: it keeps its capacity as m changes
   prefetch_relation_part(next, 0, 4);
-  if (kv.half()) kernel_key_scores_f16(shape, q, kv.kh, set.keys.data(), m, scores.data());
+  if (kv.kh) kernel_key_scores_f16(shape, q, kv.kh, set.keys.data(), m, scores.data());
   else kernel_key_scores(shape, q, kv.k, set.keys.data(), m, scores.data());
   if (!set.uniform) {
     kernel_relation_scores(shape, u, set.relation.data(), mp, scores.data(), m);
@@ -149,7 +149,7 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
   prefetch_relation_part(next, 1, 4);
   kernel_softmax_rows(scores.data(), shape.heads, m, m, scale, inv.data());
   prefetch_relation_part(next, 2, 4);
-  if (kv.half()) kernel_weighted_values_f16(shape, scores.data(), kv.vh, set.keys.data(), m, out);
+  if (kv.kh) kernel_weighted_values_f16(shape, scores.data(), kv.vh, set.keys.data(), m, out);
   else kernel_weighted_values(shape, scores.data(), kv.v, set.keys.data(), m, out);
   for (int h = 0; h < shape.heads; ++h)
     for (int c = 0; c < shape.dh; ++c) out[h * shape.dh + c] *= inv[h];
@@ -255,7 +255,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       t.vg.resize(m, d);
       for (int j = 0; j < m; ++j) {
         const size_t at = static_cast<size_t>(set->keys[j]) * d;
-        if (kv.half()) {
+        if (kv.kh) {
           halves_to_floats(kv.kh + at, d, t.kg.row(j).data());
           halves_to_floats(kv.vh + at, d, t.vg.row(j).data());
         } else {

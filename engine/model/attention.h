@@ -89,7 +89,9 @@ void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std:
 // half floats (binary16; the math converts them to float).
 struct KeyValueRows {
   const float *k = nullptr, *v = nullptr;        // float storage
-  const uint16_t *kh = nullptr, *vh = nullptr;   // half storage (when k is null)
+  const uint16_t *kh = nullptr, *vh = nullptr;   // half storage (when k is null), or beside it the same rows in half
+                                                 // floats: then queries with keys of their own read these, and
+                                                 // only groups that read every row in order read k
   int rows = 0, d = 0;
   // Optional, with float storage: per head, the keys (rows x dh) and the values transposed (dh x rows) in bf16
   // tiles. Queries that read every row together then run their two products in bf16 on AMX.

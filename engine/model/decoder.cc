@@ -243,6 +243,10 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
     const DecoderLayerParams& L = decoder_layers_[l];
     KeyValueRows map_keys(MatMap(map.cross_keys[l].data(), map.size(), c.d_model),
                           MatMap(map.cross_values[l].data(), map.size(), c.d_model));
+    if (!map.cross_keys_h.empty()) {
+      map_keys.kh = map.cross_keys_h[l].data();
+      map_keys.vh = map.cross_values_h[l].data();
+    }
     if (!map.cross_keys_bf16.empty()) {
       map_keys.k_bf16 = &map.cross_keys_bf16[static_cast<size_t>(l) * c.heads];
       map_keys.v_bf16 = &map.cross_values_bf16[static_cast<size_t>(l) * c.heads];

@@ -5,6 +5,7 @@
 #include <cstdlib>
 
 #include "absl/strings/str_cat.h"
+#include "engine/model/attention_kernels.h"
 #include "engine/model/key_select.h"
 #include "engine/model/matmul_bf16.h"
 
@@ -172,9 +173,21 @@ size_t MapContext::bytes() const {
   b *= sizeof(float);
   for (const auto* tiles : {&cross_keys_bf16, &cross_values_bf16})
     for (const Bf16Weight& w : *tiles) b += w.tiles.size() * sizeof(uint16_t);
+  for (const auto* halves : {&cross_keys_h, &cross_values_h})
+    for (const std::vector<uint16_t>& h : *halves) b += h.size() * sizeof(uint16_t);
   for (const MapSegment& s : segments) b += sizeof(MapSegment) + s.points.capacity() * sizeof(MapPoint);
   return b;
 }
+
+namespace {
+
+std::vector<uint16_t> halves_of(const Mat& m) {
+  std::vector<uint16_t> h(static_cast<size_t>(m.size()));
+  floats_to_halves(m.data(), static_cast<int>(m.size()), h.data());
+  return h;
+}
+
+}  // namespace
 
 absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<MapSegment> segments) const {
   const ModelConfig& c = config();
@@ -240,6 +253,10 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
   for (const DecoderLayerParams& L : decoder_layers_) {
     map->cross_keys.push_back(linear(map->tokens, L.cross.key));
     map->cross_values.push_back(linear(map->tokens, L.cross.value));
+    if (kv_precision() == KvPrecision::fp16) {
+      map->cross_keys_h.push_back(halves_of(map->cross_keys.back()));
+      map->cross_values_h.push_back(halves_of(map->cross_values.back()));
+    }
     if (matmul_precision() != MatmulPrecision::bf16) continue;
     for (int h = 0; h < c.heads; ++h) {
       map->cross_keys_bf16.push_back(bf16_pack(map->cross_keys.back().data() + h * dh, m, dh, c.d_model, 1));
