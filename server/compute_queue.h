@@ -1,5 +1,6 @@
-// Engine calls run on a fixed set of compute threads, in arrival order, as the batch schedulers of TF Serving and
-// llama.cpp's server do. The gRPC thread that asks waits for the call's result.
+// Engine calls run on a fixed set of compute threads, as TF Serving's batch scheduler and llama.cpp's server loop
+// run theirs. The gRPC thread that asks waits for the call's result. In arrival order: an unordered semaphore once let
+// some sessions wait >10 s under 32 clients while others went straight through (p99 11.4 s against p50 35 ms).
 //
 // Before, each of up to 32 gRPC threads ran its own calls once it held one of `threads` slots. Measured under 32
 // clients on 2 cores: the cores sat idle 7 % of the time, as each hand-over woke another thread that the scheduler

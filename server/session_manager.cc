@@ -84,7 +84,10 @@ struct InCall {
 };
 
 SessionManager::SessionManager(Engine& engine, ManagerOptions options, Metrics& metrics)
-    : engine_(engine), options_(std::move(options)), metrics_(metrics), compute_(std::max(1, options_.compute_threads), engine_thread_init) {
+    : engine_(engine),
+      options_(std::move(options)),
+      metrics_(metrics),
+      compute_(std::max(1, options_.compute_threads), engine_thread_init) {
   reaper_ = std::thread([this] { reaper(); });
 }
 
