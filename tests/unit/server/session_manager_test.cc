@@ -76,7 +76,7 @@ TEST_F(ManagerTest, TheSessionCapHoldsWithAClearError) {
 }
 
 // With one compute thread, a long multi-tick call and one-tick calls on another session take turns: the queue the
-// scenestreamer_compute_queued gauge reports holds one of them while the other's tick runs, and then empties.
+// scenestreamer_compute_queued gauge reports holds a call while the other's tick runs, and then empties.
 TEST_F(ManagerTest, TheComputeQueueGaugeCountsCallsWaitingForAComputeThread) {
   ManagerOptions o;
   o.compute_threads = 1;
@@ -100,7 +100,8 @@ TEST_F(ManagerTest, TheComputeQueueGaugeCountsCallsWaitingForAComputeThread) {
   }
   long_call.join();
   short_call.join();
-  EXPECT_EQ(most, 1);
+  EXPECT_GE(most, 1);
+  EXPECT_LE(most, 2);  // both callers' calls, in the moment before the woken compute thread takes one
   EXPECT_EQ(m.compute_queued(), 0);
   EXPECT_NE(metrics_.render().find("\nscenestreamer_compute_queued 0"), std::string::npos) << metrics_.render();
   metrics_.compute_queued = nullptr;
