@@ -63,9 +63,20 @@ TEST(ComputeQueue, CallsRunOnItsThreadsAfterTheirInitAndReturnTheirStatus) {
   });
   EXPECT_EQ(st, absl::NotFoundError("from the call"));
   EXPECT_NE(ran_on, std::this_thread::get_id());
+  {
+    std::lock_guard<std::mutex> l(mu);  // the thread that ran the call had run its init
+    EXPECT_NE(std::find(initialised.begin(), initialised.end(), ran_on), initialised.end());
+  }
+  const auto give_up = Clock::now() + std::chrono::seconds(10);  // the other thread may start later
+  for (;;) {
+    {
+      std::lock_guard<std::mutex> l(mu);
+      if (initialised.size() == 2 || Clock::now() > give_up) break;
+    }
+    std::this_thread::yield();
+  }
   std::lock_guard<std::mutex> l(mu);
   EXPECT_EQ(initialised.size(), 2u);
-  EXPECT_NE(std::find(initialised.begin(), initialised.end(), ran_on), initialised.end());
 }
 
 TEST(ComputeQueue, CallsRunInArrivalOrder) {
