@@ -1,6 +1,7 @@
 // Would batching sessions pay? The dense products of one 64-agent step of the large model (340 tokens) against the
-// same products over the tokens of 4 and 32 sessions' steps stacked, in each precision the engine runs (Eigen fp32,
-// AMX bf16): a batch pays only if its cost per row falls. Shapes: the Linear layers of the large model (d_model 128,
+// same products over the tokens of 4 and 32 sessions' steps stacked, with each kernel the engine has (Eigen fp32;
+// bf16 with AVX512-BF16, and on AMX): a batch pays only if its cost per row falls, and the kernels compare by their
+// per_row counters. Shapes: the Linear layers of the large model (d_model 128,
 // feed-forward 512) and of the small one the server ships (64, 256). Run: build/bench/batch_bench; compare the
 // per_row counters across the first argument.
 #include <benchmark/benchmark.h>
@@ -15,8 +16,10 @@ constexpr int kStepRows = 340;  // one 64-agent step's new tokens (338 in bench/
 
 // Arguments: sessions stacked (1, 4, 32), output width, input width. The product alone, into an output allocated
 // once: the best case for a batch (a batching server would also gather each session's rows and scatter them back).
-void BM_Linear(benchmark::State& state, bool bf16) {
-  if (bf16 && !bf16_products_available()) return state.SkipWithError("this CPU has no AMX-BF16");
+// `kernel` none: Eigen's fp32 product.
+void BM_Linear(benchmark::State& state, Bf16Kernel kernel) {
+  const bool bf16 = kernel != Bf16Kernel::none;
+  if (bf16_kernel() < kernel) return state.SkipWithError("this CPU lacks that kernel's instructions");
   const int rows = kStepRows * static_cast<int>(state.range(0));
   const int out = static_cast<int>(state.range(1)), in = static_cast<int>(state.range(2));
   const Mat w = Mat::Random(out, in) * 0.1f;
@@ -24,7 +27,7 @@ void BM_Linear(benchmark::State& state, bool bf16) {
   const Mat x = Mat::Random(rows, in);
   Mat y(rows, out);
   for (auto _ : state) {
-    if (bf16) bf16_linear(x.data(), rows, packed, y.data());
+    if (bf16) bf16_linear(x.data(), rows, packed, y.data(), kernel);
     else y.noalias() = x * w.transpose();
     benchmark::DoNotOptimize(y.data());
   }
@@ -40,8 +43,9 @@ void shapes(benchmark::internal::Benchmark* b) {
       b->Args({sessions, out, in});
 }
 
-BENCHMARK_CAPTURE(BM_Linear, fp32, false)->Apply(shapes)->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Linear, bf16, true)->Apply(shapes)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Linear, fp32, Bf16Kernel::none)->Apply(shapes)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Linear, bf16_avx512, Bf16Kernel::avx512_bf16)->Apply(shapes)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Linear, bf16_amx, Bf16Kernel::amx)->Apply(shapes)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace ss

@@ -62,7 +62,7 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options);
 const std::vector<EngineScenario>& engine_scenarios(const Engine& engine);
 const std::string& engine_model_name(const Engine& engine);  // the model config's name
 const char* engine_kv_precision(const Engine& engine);       // "fp16" (default) or "fp32": SCENESTREAMER_KV_PRECISION
-const char* engine_matmul_precision(const Engine& engine);   // "bf16" (default with AMX) or "fp32": SCENESTREAMER_MATMUL_PRECISION
+const char* engine_matmul_precision(const Engine& engine);   // "bf16" (default with AVX512-BF16) or "fp32": SCENESTREAMER_MATMUL_PRECISION
 bool engine_random_weights(const Engine& engine);
 // Number of map encodings computed so far (the rest were shared between sessions).
 int engine_map_encodes(const Engine& engine);

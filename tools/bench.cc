@@ -25,8 +25,8 @@ ABSL_FLAG(int, long_steps, 1000, "steps of the long rollout whose session memory
 ABSL_FLAG(std::string, kv_precision, "",
           "fp32 or fp16: how keys and values are stored; default: $SCENESTREAMER_KV_PRECISION, else fp16");
 ABSL_FLAG(std::string, matmul_precision, "",
-          "fp32 or bf16 (AMX-BF16 CPUs): the dense products' precision; default: $SCENESTREAMER_MATMUL_PRECISION, "
-          "else bf16 where the CPU has AMX-BF16, else fp32");
+          "fp32 or bf16 (AVX512-BF16 CPUs): the dense products' precision; default: $SCENESTREAMER_MATMUL_PRECISION, "
+          "else bf16 where the CPU has AVX512-BF16, else fp32");
 
 namespace ss::cli {
 namespace {
@@ -41,10 +41,9 @@ double percentile(std::vector<double> v, double p) {
   return lo + 1 < v.size() ? v[lo] + (pos - lo) * (v[lo + 1] - v[lo]) : v[lo];
 }
 
-// Eigen's matrix product on a decoder shape (a step's ~340 tokens through the feed-forward's first layer), in this
-// run: the rate the dense part of a step can reach at best on this machine.
 // The dense-product rate, in the model's precision, on the shape of a 64-agent step's feed-forward layer (340 tokens,
-// 128 -> 512): Eigen's fp32 GEMM, or the bf16 AMX product.
+// 128 -> 512), in this run: Eigen's fp32 GEMM, or the bf16 product (AMX or AVX512-BF16). The rate the dense part of
+// a step can reach at best on this machine.
 double gemm_gflops(MatmulPrecision precision) {
   const Mat x = Mat::Random(340, 128), w = Mat::Random(512, 128);
   const Bf16Weight packed = precision == MatmulPrecision::bf16 ? bf16_pack(w.data(), 512, 128) : Bf16Weight{};
@@ -101,6 +100,7 @@ int bench_main(int argc, char** argv) {
   out["threads"] = 1;
   out["kv_precision"] = kv_precision_name(world->model->kv_precision());
   out["matmul_precision"] = matmul_precision_name(world->model->matmul_precision());
+  if (world->model->matmul_precision() == MatmulPrecision::bf16) out["bf16_kernel"] = bf16_kernel_name(bf16_kernel());
   out["lights"] = world->scenario->signals.empty() ? 0 : world->scenario->signals[world->scenario->current_time_index].size();
   out["map_segments"] = world->map->size();
 

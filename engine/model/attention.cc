@@ -40,7 +40,7 @@ void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std:
                           const RelationParams& p) {
   // In chunks of about 2,048 rows, so that a chunk's embeddings (2,048 x relation_dim floats, 256 KB) are still in
   // the core's cache when they are copied out: one product for a whole call's pairs (40,000 in a busy server's
-  // steps) made the server slower and its memory larger. Only when the second layer runs in bf16 on AMX: a row's
+  // steps) made the server slower and its memory larger. Only when the second layer runs in bf16: a row's
   // bits then do not depend on the rows beside it (as for the first layer's 7-deep fp32 product; tested), while
   // Eigen's fp32 product of the second layer gives a row other bits in another batch. Each set alone then, as a
   // set's columns must not depend on the call it is made in: a restored session rebuilds its cache's map key sets

@@ -20,7 +20,7 @@ struct LinearParams {
   const float* weight = nullptr;  // [out, in]
   const float* bias = nullptr;    // [out], or null
   int out = 0, in = 0;
-  const Bf16Weight* bf16 = nullptr;  // W in bf16 AMX tiles when the model runs its products in bf16, else null
+  const Bf16Weight* bf16 = nullptr;  // W in bf16 tiles when the model runs its products in bf16, else null
 
   MatMap w() const { return MatMap(weight, out, in); }
 };
@@ -31,7 +31,7 @@ struct NormParams {
   int dim = 0;
 };
 
-// y = x W^T + b (in bf16 on AMX tiles when p.bf16 is set: engine/model/matmul_bf16.h)
+// y = x W^T + b (in bf16 when p.bf16 is set: engine/model/matmul_bf16.h)
 Mat linear(const Mat& x, const LinearParams& p);
 // Row-wise LayerNorm with affine parameters.
 Mat layer_norm(const Mat& x, const NormParams& p);

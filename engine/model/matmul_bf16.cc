@@ -29,6 +29,14 @@ TileConfig tile_config() {
   return c;
 }
 
+bool cpu_has_avx512_bf16() {
+  unsigned a, b, c, d;
+  if (!__get_cpuid_count(7, 0, &a, &b, &c, &d)) return false;
+  const bool avx512f = b & (1u << 16);
+  if (!__get_cpuid_count(7, 1, &a, &b, &c, &d)) return false;
+  return avx512f && (a & (1u << 5));
+}
+
 bool cpu_has_amx_bf16() {
   unsigned a, b, c, d;
   if (!__get_cpuid_count(7, 0, &a, &b, &c, &d)) return false;
@@ -54,10 +62,18 @@ uint16_t to_bf16(float f) {  // round to nearest even, as vcvtne2ps2bf16 does (N
 
 }  // namespace
 
-bool bf16_products_available() {
-  static const bool ok = cpu_has_amx_bf16() && request_tile_state();
-  return ok;
+Bf16Kernel bf16_kernel() {
+  static const Bf16Kernel k = cpu_has_amx_bf16() && request_tile_state() ? Bf16Kernel::amx
+                              : cpu_has_avx512_bf16()                    ? Bf16Kernel::avx512_bf16
+                                                                         : Bf16Kernel::none;
+  return k;
 }
+
+const char* bf16_kernel_name(Bf16Kernel k) {
+  return k == Bf16Kernel::amx ? "amx" : k == Bf16Kernel::avx512_bf16 ? "avx512-bf16" : "none";
+}
+
+bool bf16_products_available() { return bf16_kernel() != Bf16Kernel::none; }
 
 bool bf16_packable(int out, int in) { return out > 0 && in > 0 && in % kTileDepth == 0; }
 
@@ -83,15 +99,13 @@ namespace {
 
 constexpr int kChunkRows = 256;  // rows per call of linear_rows: bounds each thread's bf16 copy of x (<= 0.6 MB)
 
-// bf16_linear for at most kChunkRows rows.
-__attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void linear_rows(const float* x, int rows,
-                                                                                 const Bf16Weight& w, float* y) {
-  const int in = w.in, out = w.out, depth_tiles = (in + kTileDepth - 1) / kTileDepth;
-  const int depth = depth_tiles * kTileDepth, padded_rows = (rows + 31) / 32 * 32;
-  // x in bf16, rows padded to a multiple of 32 and columns to the tiles' depth with zeros. The padding rows hold
-  // whatever an earlier call left: they only feed output rows that are never stored.
+// x (rows x in) in bf16 into this thread's buffer, each row padded with zeros to `depth` (a multiple of 32) and the
+// rows to a multiple of 32 (the AMX kernel's blocks). The padding rows hold whatever an earlier call left: they only
+// feed output rows that are never stored.
+__attribute__((target("avx512f,avx512bf16"))) const uint16_t* bf16_rows(const float* x, int rows, int in, int depth) {
   thread_local std::vector<uint16_t> a;
-  if (a.size() < static_cast<size_t>(padded_rows) * depth) a.resize(static_cast<size_t>(padded_rows) * depth);
+  const size_t padded_rows = (rows + 31) / 32 * 32;
+  if (a.size() < padded_rows * depth) a.resize(padded_rows * depth);
   for (int i = 0; i < rows; ++i) {
     const float* xr = x + static_cast<size_t>(i) * in;
     uint16_t* ar = a.data() + static_cast<size_t>(i) * depth;
@@ -103,6 +117,15 @@ __attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void linear_rows
       _mm512_storeu_si512(ar + k, reinterpret_cast<__m512i>(v));
     }
   }
+  return a.data();
+}
+
+// bf16_linear for at most kChunkRows rows, on AMX tiles.
+__attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void amx_rows(const float* x, int rows,
+                                                                              const Bf16Weight& w, float* y) {
+  const int in = w.in, out = w.out, depth_tiles = (in + kTileDepth - 1) / kTileDepth;
+  const int depth = depth_tiles * kTileDepth;
+  const uint16_t* const a = bf16_rows(x, rows, in, depth);
   static const TileConfig config = tile_config();
   _tile_loadconfig(&config);
   alignas(64) float edge[kTileRows * 16];
@@ -110,7 +133,7 @@ __attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void linear_rows
   const uint16_t* b = w.tiles.data();
   for (int m0 = 0; m0 < rows; m0 += 32) {
     const bool two_rows = rows - m0 > kTileRows;  // a lone block of 16 rows (e.g. one token) does half the work
-    const uint16_t* a0 = a.data() + static_cast<size_t>(m0) * depth;
+    const uint16_t* a0 = a + static_cast<size_t>(m0) * depth;
     const uint16_t* a1 = a0 + static_cast<size_t>(kTileRows) * depth;
     for (int n0 = 0; n0 < out; n0 += 32) {
       const uint16_t* b0 = b + static_cast<size_t>(n0 / 16) * depth_tiles * tile_elems;
@@ -156,12 +179,83 @@ __attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void linear_rows
   _tile_release();  // back to the init state: a context switch need not save 8 KB of tiles
 }
 
+// A block of R rows of y by C column tiles (16 outputs each) with AVX512-BF16: for each depth pair, R x C `vdpbf16ps`
+// of a row's pair (broadcast) by a B-tile row, which holds the pair of each of its 16 outputs: the packed tiles are
+// already in the order this instruction reads. Each output sums its depth pairs in order whatever R and C are, so a
+// row's bits do not depend on its batch.
+template <int R, int C>
+__attribute__((target("avx512f,avx512bf16"))) inline void avx512_block(const uint16_t* a, size_t a_stride,
+                                                                      const uint16_t* b, size_t b_stride,
+                                                                      int depth_tiles, float* y, size_t y_stride,
+                                                                      int cols) {
+  __m512 acc[R][C];
+  for (int i = 0; i < R; ++i)
+    for (int c = 0; c < C; ++c) acc[i][c] = _mm512_setzero_ps();
+  for (int kt = 0; kt < depth_tiles; ++kt)
+    for (int r = 0; r < kTileRows; ++r) {
+      const size_t bo = static_cast<size_t>(kt) * kTileRows * kTileDepth + r * kTileDepth;
+      __m512bh bv[C];
+      for (int c = 0; c < C; ++c) bv[c] = reinterpret_cast<__m512bh>(_mm512_loadu_si512(b + c * b_stride + bo));
+      for (int i = 0; i < R; ++i) {
+        int32_t pair;
+        std::memcpy(&pair, a + i * a_stride + kt * kTileDepth + 2 * r, 4);
+        const __m512bh av = reinterpret_cast<__m512bh>(_mm512_set1_epi32(pair));
+        for (int c = 0; c < C; ++c) acc[i][c] = _mm512_dpbf16_ps(acc[i][c], av, bv[c]);
+      }
+    }
+  for (int i = 0; i < R; ++i)
+    for (int c = 0; c < C; ++c) {
+      const int left = cols - c * 16;
+      const __mmask16 m = left >= 16 ? 0xffff : (1u << left) - 1;
+      _mm512_mask_storeu_ps(y + i * y_stride + c * 16, m, acc[i][c]);
+    }
+}
+
+template <int R>
+void avx512_row_block(const uint16_t* a, size_t a_stride, const uint16_t* b, size_t b_stride, int depth_tiles,
+                      float* y, size_t y_stride, int cols) {
+  const int col_tiles = (cols + 15) / 16;
+  if (col_tiles >= 4) avx512_block<R, 4>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
+  else if (col_tiles == 3) avx512_block<R, 3>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
+  else if (col_tiles == 2) avx512_block<R, 2>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
+  else avx512_block<R, 1>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
+}
+
+// bf16_linear for at most kChunkRows rows with AVX512-BF16, for CPUs without AMX. Blocks of 4 rows by 64 outputs:
+// 16 accumulators, 4 B-tile rows and a broadcast pair in 32 registers.
+__attribute__((target("avx512f,avx512bf16"))) void avx512_rows(const float* x, int rows, const Bf16Weight& w,
+                                                               float* y) {
+  constexpr int kRows = 4, kCols = 64;
+  const int in = w.in, out = w.out, depth_tiles = (in + kTileDepth - 1) / kTileDepth;
+  const size_t depth = static_cast<size_t>(depth_tiles) * kTileDepth, tile_stride = depth * kTileRows;
+  const uint16_t* const a = bf16_rows(x, rows, in, static_cast<int>(depth));
+  for (int n0 = 0; n0 < out; n0 += kCols) {
+    const uint16_t* b = w.tiles.data() + static_cast<size_t>(n0 / 16) * tile_stride;
+    const int cols = std::min(kCols, out - n0);
+    int m0 = 0;
+    for (; m0 + kRows <= rows; m0 += kRows)
+      avx512_row_block<kRows>(a + m0 * depth, depth, b, tile_stride, depth_tiles, y + m0 * out + n0, out, cols);
+    const uint16_t* at = a + m0 * depth;
+    float* yt = y + static_cast<size_t>(m0) * out + n0;
+    switch (rows - m0) {
+      case 3: avx512_row_block<3>(at, depth, b, tile_stride, depth_tiles, yt, out, cols); break;
+      case 2: avx512_row_block<2>(at, depth, b, tile_stride, depth_tiles, yt, out, cols); break;
+      case 1: avx512_row_block<1>(at, depth, b, tile_stride, depth_tiles, yt, out, cols); break;
+      default: break;
+    }
+  }
+}
+
 }  // namespace
 
-void bf16_linear(const float* x, int rows, const Bf16Weight& w, float* y) {
+void bf16_linear(const float* x, int rows, const Bf16Weight& w, float* y) { bf16_linear(x, rows, w, y, bf16_kernel()); }
+
+void bf16_linear(const float* x, int rows, const Bf16Weight& w, float* y, Bf16Kernel kernel) {
+  const auto kernel_rows = kernel == Bf16Kernel::amx ? amx_rows : avx512_rows;
   // Rows are independent, so chunks give the same bits as one call.
   for (int r = 0; r < rows; r += kChunkRows)
-    linear_rows(x + static_cast<size_t>(r) * w.in, std::min(kChunkRows, rows - r), w, y + static_cast<size_t>(r) * w.out);
+    kernel_rows(x + static_cast<size_t>(r) * w.in, std::min(kChunkRows, rows - r), w,
+                y + static_cast<size_t>(r) * w.out);
 }
 
 }  // namespace ss

@@ -22,7 +22,7 @@ absl::StatusOr<KvPrecision> kv_precision_from_env() {
   return p;
 }
 
-// SCENESTREAMER_MATMUL_PRECISION, else bf16 where the CPU has AMX-BF16, else fp32.
+// SCENESTREAMER_MATMUL_PRECISION, else bf16 where the CPU has AVX512-BF16 (with or without AMX), else fp32.
 absl::StatusOr<MatmulPrecision> matmul_precision_from_env() {
   const char* env = std::getenv("SCENESTREAMER_MATMUL_PRECISION");
   if (env == nullptr || *env == 0) return bf16_products_available() ? MatmulPrecision::bf16 : MatmulPrecision::fp32;
@@ -133,8 +133,8 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, Mode
   }
   if (*options.matmul_precision == MatmulPrecision::bf16 && !bf16_products_available())
     return absl::FailedPreconditionError(
-        "matmul precision bf16 needs a CPU with AMX-BF16 and AVX512-BF16 (and a Linux kernel that grants the tile "
-        "state); this one has not: use fp32");
+        "matmul precision bf16 needs a CPU with AVX512-BF16 (Intel Cooper Lake or Sapphire Rapids and later, AMD Zen "
+        "4 and later); this one has not: use fp32");
   return std::shared_ptr<const Model>(new Model(std::move(weights), options));
 }
 

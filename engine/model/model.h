@@ -66,8 +66,9 @@ struct RsBlockParams {
   LinearParams ffn1, ffn2;
 };
 
-// The dense products (every Linear layer over the model width, heads included): fp32 (Eigen), or bf16 on AMX tiles,
-// weights and inputs rounded to bf16 and every sum in fp32 (engine/model/matmul_bf16.h; CPUs with AMX-BF16 only).
+// The dense products (every Linear layer over the model width, heads included): fp32 (Eigen), or bf16 on AMX tiles
+// or with AVX512-BF16, weights and inputs rounded to bf16 and every sum in fp32 (engine/model/matmul_bf16.h; CPUs
+// with AVX512-BF16 only).
 // Keeping the heads in fp32 was tried: the logits' difference from fp32 stayed the same (0.091 against 0.096: it comes
 // from the hidden states).
 enum class MatmulPrecision : uint8_t { fp32, bf16 };
@@ -78,8 +79,8 @@ struct ModelOptions {
   // (realism unchanged within its interval at K = 32: README). Unset: SCENESTREAMER_KV_PRECISION (fp32 or fp16), else
   // fp16, resolved by Model::create, so every program that loads a model (server, tools) can choose without a flag.
   std::optional<KvPrecision> kv_precision;
-  // Unset: SCENESTREAMER_MATMUL_PRECISION (fp32 or bf16), else bf16 where the CPU has AMX-BF16 (realism unchanged
-  // within its interval: README, Speed), else fp32. bf16 asked for on a CPU without AMX-BF16 is an error.
+  // Unset: SCENESTREAMER_MATMUL_PRECISION (fp32 or bf16), else bf16 where the CPU has AVX512-BF16 (realism unchanged
+  // within its interval: README, Speed), else fp32. bf16 asked for on a CPU without AVX512-BF16 is an error.
   std::optional<MatmulPrecision> matmul_precision;
   // Threads one decode call may use: its attention's groups of queries are shared out (the same bits at any count).
   // 1: the calling thread alone. For a lone session's latency; a server busy with many sessions gains nothing.

@@ -1,5 +1,5 @@
 // set_relation_columns: the relation MLP run over many key sets at once (in chunks) gives each set the same bits
-// relation_columns gives it alone, with the MLP's products in fp32 and, where the CPU has AMX-BF16, in bf16.
+// relation_columns gives it alone, with the MLP's products in fp32 and, where the CPU has AVX512-BF16, in bf16.
 #include "engine/model/attention.h"
 
 #include <gtest/gtest.h>
@@ -51,7 +51,7 @@ void check_sets_at_once(bool bf16) {
 TEST(RelationColumns, ManySetsAtOnceEqualEachAloneFp32) { check_sets_at_once(false); }
 
 TEST(RelationColumns, ManySetsAtOnceEqualEachAloneBf16) {
-  if (!bf16_products_available()) GTEST_SKIP() << "no AMX-BF16 on this CPU";
+  if (!bf16_products_available()) GTEST_SKIP() << "no AVX512-BF16 on this CPU";
   check_sets_at_once(true);
 }
 

@@ -1,6 +1,6 @@
-// The bf16 products on AMX tiles (engine/model/matmul_bf16.h) against the same products in double over the same
-// bf16-rounded inputs, on the shapes the model uses and ragged edges; each row's bits independent of its batch.
-// Skipped on CPUs without AMX-BF16 (the fp32 path is the only one there).
+// The bf16 products (engine/model/matmul_bf16.h), with each kernel the CPU has (AVX512-BF16; AMX), against the same
+// products in double over the same bf16-rounded inputs, on the shapes the model uses and ragged edges; each row's
+// bits independent of its batch. Skipped on CPUs without AVX512-BF16 (the fp32 path is the only one there).
 #include "engine/model/matmul_bf16.h"
 
 #include <gtest/gtest.h>
@@ -31,10 +31,17 @@ Mat random_mat(int rows, int cols, std::mt19937& rng) {
   return m;
 }
 
+std::vector<Bf16Kernel> kernels() {  // the kernels this CPU has, the default one last
+  std::vector<Bf16Kernel> k;
+  if (bf16_kernel() >= Bf16Kernel::avx512_bf16) k.push_back(Bf16Kernel::avx512_bf16);
+  if (bf16_kernel() == Bf16Kernel::amx) k.push_back(Bf16Kernel::amx);
+  return k;
+}
+
 class Bf16Products : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AMX-BF16";
+    if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
   }
 };
 
@@ -46,19 +53,21 @@ TEST_F(Bf16Products, MatchTheProductOfTheRoundedInputs) {
     for (const auto& [out, in] : {std::pair{3, 32}, {48, 64}, {130, 128}, {512, 128}, {128, 512}, {32, 1093}, {20, 7}}) {
       const Mat x = random_mat(rows, in, rng), w = random_mat(out, in, rng);
       const Bf16Weight packed = bf16_pack(w.data(), out, in);
-      Mat y(rows, out);
-      bf16_linear(x.data(), rows, packed, y.data());
-      double worst = 0;
-      for (int i = 0; i < rows; ++i)
-        for (int o = 0; o < out; ++o) {
-          double ref = 0, mag = 0;
-          for (int k = 0; k < in; ++k) {
-            const double p = static_cast<double>(bf16_round(x(i, k))) * bf16_round(w(o, k));
-            ref += p, mag += std::abs(p);
+      for (const Bf16Kernel kernel : kernels()) {
+        Mat y(rows, out);
+        bf16_linear(x.data(), rows, packed, y.data(), kernel);
+        double worst = 0;
+        for (int i = 0; i < rows; ++i)
+          for (int o = 0; o < out; ++o) {
+            double ref = 0, mag = 0;
+            for (int k = 0; k < in; ++k) {
+              const double p = static_cast<double>(bf16_round(x(i, k))) * bf16_round(w(o, k));
+              ref += p, mag += std::abs(p);
+            }
+            worst = std::max(worst, std::abs(y(i, o) - ref) / mag);  // fp32 sums: error relative to sum |terms|
           }
-          worst = std::max(worst, std::abs(y(i, o) - ref) / mag);  // fp32 sums: error relative to sum |terms|
-        }
-      EXPECT_LT(worst, 1e-5) << rows << " x " << in << " -> " << out;
+        EXPECT_LT(worst, 1e-5) << rows << " x " << in << " -> " << out << ", " << bf16_kernel_name(kernel);
+      }
     }
 }
 
@@ -92,13 +101,26 @@ TEST_F(Bf16Products, ARowHasTheSameBitsAloneAndInABatch) {
   std::mt19937 rng(7);
   const Mat x = random_mat(50, 64, rng), w = random_mat(200, 64, rng);
   const Bf16Weight packed = bf16_pack(w.data(), 200, 64);
-  Mat batch(50, 200);
-  bf16_linear(x.data(), 50, packed, batch.data());
-  for (const int r : {0, 17, 31, 32, 49}) {
-    Mat alone(1, 200);
-    bf16_linear(x.row(r).data(), 1, packed, alone.data());
-    EXPECT_EQ(std::memcmp(alone.data(), batch.row(r).data(), 200 * sizeof(float)), 0) << "row " << r;
+  for (const Bf16Kernel kernel : kernels()) {
+    Mat batch(50, 200);
+    bf16_linear(x.data(), 50, packed, batch.data(), kernel);
+    for (const int r : {0, 17, 31, 32, 49}) {
+      Mat alone(1, 200);
+      bf16_linear(x.row(r).data(), 1, packed, alone.data(), kernel);
+      EXPECT_EQ(std::memcmp(alone.data(), batch.row(r).data(), 200 * sizeof(float)), 0)
+          << "row " << r << ", " << bf16_kernel_name(kernel);
+    }
   }
+}
+
+TEST_F(Bf16Products, TheDefaultKernelIsTheFastestTheCpuHas) {
+  EXPECT_EQ(bf16_kernel(), kernels().back());
+  const Mat x = Mat::Random(3, 32), w = Mat::Random(5, 32);
+  const Bf16Weight packed = bf16_pack(w.data(), 5, 32);
+  Mat a(3, 5), b(3, 5);
+  bf16_linear(x.data(), 3, packed, a.data());
+  bf16_linear(x.data(), 3, packed, b.data(), bf16_kernel());
+  EXPECT_EQ(a, b);
 }
 
 TEST_F(Bf16Products, LinearUsesThemWhenTheWeightIsPacked) {

@@ -1,7 +1,7 @@
 // The model's precisions: the KV caches' (ModelOptions::kv_precision: fp16, the default, or fp32) and the dense
-// products' (ModelOptions::matmul_precision: fp32, the default, or bf16 on AMX). Each against a full recompute and
-// against fp32 on the same tokens (the stated tolerances), and the determinism guarantees (same seed at any thread
-// count, fork, save/restore) in each mode. bf16 tests are skipped on CPUs without AMX-BF16.
+// products' (ModelOptions::matmul_precision: fp32, or bf16, the default where the CPU has AVX512-BF16). Each against a
+// full recompute and against fp32 on the same tokens (the stated tolerances), and the determinism guarantees (same
+// seed at any thread count, fork, save/restore) in each mode. bf16 tests are skipped on CPUs without AVX512-BF16.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -46,7 +46,7 @@ class PrecisionTest : public ::testing::TestWithParam<Mode> {
     for (auto*& w : worlds_) delete w, w = nullptr;
   }
   void SetUp() override {
-    if (!worlds_[static_cast<int>(GetParam())]) GTEST_SKIP() << "this CPU has no AMX-BF16";
+    if (!worlds_[static_cast<int>(GetParam())]) GTEST_SKIP() << "this CPU has no AVX512-BF16";
   }
   static const testing::World& w() { return *worlds_[static_cast<int>(GetParam())]; }
   static inline testing::World* worlds_[3] = {};
@@ -107,11 +107,11 @@ TEST(DefaultPrecision, AnUnknownProductPrecisionIsAnError) {
 }
 
 TEST(DefaultPrecision, Bf16ProductsWhereTheCpuLacksThemAreAnError) {
-  if (bf16_products_available()) GTEST_SKIP() << "this CPU has AMX-BF16";
+  if (bf16_products_available()) GTEST_SKIP() << "this CPU has AVX512-BF16";
   auto model = Model::create(init_weights(*model_config_by_name("small"), 1), bf16(KvPrecision::fp16));
   ASSERT_FALSE(model.ok());
   EXPECT_EQ(model.status().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_NE(model.status().message().find("AMX"), std::string::npos) << model.status();
+  EXPECT_NE(model.status().message().find("AVX512-BF16"), std::string::npos) << model.status();
 }
 
 TEST_P(PrecisionTest, CachesStoreTheirPrecision) {
@@ -232,14 +232,14 @@ TEST(Fp16Map, TheMapsHalfFloatKeysAreItsFloatKeysRounded) {
 }
 
 TEST(Bf16Products, StayCloseToFp32) {
-  if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AMX-BF16";
+  if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
   const testing::World f32 = load_world("small", 1, kv(KvPrecision::fp32));
   const testing::World b16 = load_world("small", 1, bf16(KvPrecision::fp16));
   expect_close_to_fp32(f32, b16, 5e-2, 1e-2);  // measured: 2.4e-2 and 4.1e-3
 }
 
 TEST(Bf16Products, StayCloseToFp32WithTheShippedModel) {
-  if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AMX-BF16";
+  if (!bf16_products_available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
   auto weights = load_weights(SS_SOURCE_DIR "/models/default.safetensors");
   ASSERT_TRUE(weights.ok()) << weights.status();
   testing::World f32 = load_world("small", 1), b16 = f32;
