@@ -41,6 +41,9 @@ void shapes(benchmark::internal::Benchmark* b) {
   for (int sessions : {1, 4, 32})
     for (auto [out, in] : {std::pair{128, 128}, {512, 128}, {128, 512}, {64, 64}, {256, 64}, {64, 256}})
       b->Args({sessions, out, in});
+  // The queries that read the whole map (1,093 keys) together, per head: scores (out: the keys; in: the head width,
+  // 32 large, 16 small) and weighted values (out: the head width; in: the keys).
+  for (auto [out, in] : {std::pair{1093, 32}, {1093, 16}, {32, 1093}, {16, 1093}}) b->Args({1, out, in});
 }
 
 BENCHMARK_CAPTURE(BM_Linear, fp32, Bf16Kernel::none)->Apply(shapes)->Unit(benchmark::kMicrosecond);

@@ -181,28 +181,26 @@ __attribute__((target("avx512f,avx512bf16,amx-tile,amx-bf16"))) void amx_rows(co
 
 // A block of R rows of y by C column tiles (16 outputs each) with AVX512-BF16: for each depth pair, R x C `vdpbf16ps`
 // of a row's pair (broadcast) by a B-tile row, which holds the pair of each of its 16 outputs: the packed tiles are
-// already in the order this instruction reads. Each output sums its depth pairs in order whatever R and C are, so a
-// row's bits do not depend on its batch.
+// already in the order this instruction reads, and a column tile's depth tiles follow one another, so depth pair p
+// is at p * 32 in both. Each output sums its depth pairs in order whatever R and C are, so a row's bits do not
+// depend on its batch. `pairs`: the depth pairs that hold data (the padding's zero pairs are skipped).
 template <int R, int C>
 __attribute__((target("avx512f,avx512bf16"))) inline void avx512_block(const uint16_t* a, size_t a_stride,
-                                                                      const uint16_t* b, size_t b_stride,
-                                                                      int depth_tiles, float* y, size_t y_stride,
-                                                                      int cols) {
+                                                                      const uint16_t* b, size_t b_stride, int pairs,
+                                                                      float* y, size_t y_stride, int cols) {
   __m512 acc[R][C];
   for (int i = 0; i < R; ++i)
     for (int c = 0; c < C; ++c) acc[i][c] = _mm512_setzero_ps();
-  for (int kt = 0; kt < depth_tiles; ++kt)
-    for (int r = 0; r < kTileRows; ++r) {
-      const size_t bo = static_cast<size_t>(kt) * kTileRows * kTileDepth + r * kTileDepth;
-      __m512bh bv[C];
-      for (int c = 0; c < C; ++c) bv[c] = reinterpret_cast<__m512bh>(_mm512_loadu_si512(b + c * b_stride + bo));
-      for (int i = 0; i < R; ++i) {
-        int32_t pair;
-        std::memcpy(&pair, a + i * a_stride + kt * kTileDepth + 2 * r, 4);
-        const __m512bh av = reinterpret_cast<__m512bh>(_mm512_set1_epi32(pair));
-        for (int c = 0; c < C; ++c) acc[i][c] = _mm512_dpbf16_ps(acc[i][c], av, bv[c]);
-      }
+  for (int p = 0; p < pairs; ++p) {
+    __m512bh bv[C];
+    for (int c = 0; c < C; ++c) bv[c] = reinterpret_cast<__m512bh>(_mm512_loadu_si512(b + c * b_stride + p * 32));
+    for (int i = 0; i < R; ++i) {
+      int32_t pair;
+      std::memcpy(&pair, a + i * a_stride + 2 * p, 4);
+      const __m512bh av = reinterpret_cast<__m512bh>(_mm512_set1_epi32(pair));
+      for (int c = 0; c < C; ++c) acc[i][c] = _mm512_dpbf16_ps(acc[i][c], av, bv[c]);
     }
+  }
   for (int i = 0; i < R; ++i)
     for (int c = 0; c < C; ++c) {
       const int left = cols - c * 16;
@@ -211,37 +209,44 @@ __attribute__((target("avx512f,avx512bf16"))) inline void avx512_block(const uin
     }
 }
 
-template <int R>
-void avx512_row_block(const uint16_t* a, size_t a_stride, const uint16_t* b, size_t b_stride, int depth_tiles,
-                      float* y, size_t y_stride, int cols) {
-  const int col_tiles = (cols + 15) / 16;
-  if (col_tiles >= 4) avx512_block<R, 4>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
-  else if (col_tiles == 3) avx512_block<R, 3>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
-  else if (col_tiles == 2) avx512_block<R, 2>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
-  else avx512_block<R, 1>(a, a_stride, b, b_stride, depth_tiles, y, y_stride, cols);
+// Every row of y for one block of C column tiles: blocks of 16 / C rows, so that a narrow block still has 16
+// independent sums in flight (8 by 4 were too few to cover the instruction's latency), then blocks of 4, then the
+// rest.
+template <int C>
+void avx512_columns(const uint16_t* a, size_t depth, int rows, const uint16_t* b, size_t tile_stride, int pairs,
+                    float* y, int out, int cols) {
+  constexpr int kRows = 16 / C;
+  int m0 = 0;
+  for (; m0 + kRows <= rows; m0 += kRows)
+    avx512_block<kRows, C>(a + m0 * depth, depth, b, tile_stride, pairs, y + static_cast<size_t>(m0) * out, out, cols);
+  if constexpr (kRows > 4)
+    for (; m0 + 4 <= rows; m0 += 4)
+      avx512_block<4, C>(a + m0 * depth, depth, b, tile_stride, pairs, y + static_cast<size_t>(m0) * out, out, cols);
+  const uint16_t* at = a + m0 * depth;
+  float* yt = y + static_cast<size_t>(m0) * out;
+  switch (rows - m0) {
+    case 3: avx512_block<3, C>(at, depth, b, tile_stride, pairs, yt, out, cols); break;
+    case 2: avx512_block<2, C>(at, depth, b, tile_stride, pairs, yt, out, cols); break;
+    case 1: avx512_block<1, C>(at, depth, b, tile_stride, pairs, yt, out, cols); break;
+    default: break;
+  }
 }
 
-// bf16_linear for at most kChunkRows rows with AVX512-BF16, for CPUs without AMX. Blocks of 4 rows by 64 outputs:
-// 16 accumulators, 4 B-tile rows and a broadcast pair in 32 registers.
+// bf16_linear for at most kChunkRows rows with AVX512-BF16, for CPUs without AMX: column blocks of up to 4 tiles (64
+// outputs), each over every row.
 __attribute__((target("avx512f,avx512bf16"))) void avx512_rows(const float* x, int rows, const Bf16Weight& w,
                                                                float* y) {
-  constexpr int kRows = 4, kCols = 64;
-  const int in = w.in, out = w.out, depth_tiles = (in + kTileDepth - 1) / kTileDepth;
+  const int in = w.in, out = w.out, depth_tiles = (in + kTileDepth - 1) / kTileDepth, pairs = (in + 1) / 2;
   const size_t depth = static_cast<size_t>(depth_tiles) * kTileDepth, tile_stride = depth * kTileRows;
   const uint16_t* const a = bf16_rows(x, rows, in, static_cast<int>(depth));
-  for (int n0 = 0; n0 < out; n0 += kCols) {
+  for (int n0 = 0; n0 < out; n0 += 64) {
     const uint16_t* b = w.tiles.data() + static_cast<size_t>(n0 / 16) * tile_stride;
-    const int cols = std::min(kCols, out - n0);
-    int m0 = 0;
-    for (; m0 + kRows <= rows; m0 += kRows)
-      avx512_row_block<kRows>(a + m0 * depth, depth, b, tile_stride, depth_tiles, y + m0 * out + n0, out, cols);
-    const uint16_t* at = a + m0 * depth;
-    float* yt = y + static_cast<size_t>(m0) * out + n0;
-    switch (rows - m0) {
-      case 3: avx512_row_block<3>(at, depth, b, tile_stride, depth_tiles, yt, out, cols); break;
-      case 2: avx512_row_block<2>(at, depth, b, tile_stride, depth_tiles, yt, out, cols); break;
-      case 1: avx512_row_block<1>(at, depth, b, tile_stride, depth_tiles, yt, out, cols); break;
-      default: break;
+    const int cols = std::min(64, out - n0);
+    switch ((cols + 15) / 16) {
+      case 4: avx512_columns<4>(a, depth, rows, b, tile_stride, pairs, y + n0, out, cols); break;
+      case 3: avx512_columns<3>(a, depth, rows, b, tile_stride, pairs, y + n0, out, cols); break;
+      case 2: avx512_columns<2>(a, depth, rows, b, tile_stride, pairs, y + n0, out, cols); break;
+      default: avx512_columns<1>(a, depth, rows, b, tile_stride, pairs, y + n0, out, cols); break;
     }
   }
 }
