@@ -37,13 +37,11 @@ bool cpu_has_avx512_bf16() {
   return avx512f && (a & (1u << 5));
 }
 
-bool cpu_has_amx_bf16() {
+bool cpu_has_amx_bf16() {  // the AMX kernel converts its inputs with AVX512-BF16, so it needs that too
   unsigned a, b, c, d;
   if (!__get_cpuid_count(7, 0, &a, &b, &c, &d)) return false;
-  const bool avx512f = b & (1u << 16), amx_bf16 = d & (1u << 22), amx_tile = d & (1u << 24);
-  if (!__get_cpuid_count(7, 1, &a, &b, &c, &d)) return false;
-  const bool avx512_bf16 = a & (1u << 5);
-  return avx512f && amx_bf16 && amx_tile && avx512_bf16;
+  const bool amx_bf16 = d & (1u << 22), amx_tile = d & (1u << 24);
+  return amx_bf16 && amx_tile && cpu_has_avx512_bf16();
 }
 
 // Linux keeps the 8 KB tile state off by default; a process asks for it once (ARCH_REQ_XCOMP_PERM, XTILEDATA).
