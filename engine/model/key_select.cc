@@ -13,7 +13,6 @@ SelfKeySelector::SelfKeySelector(std::span<const DecoderToken> cached, std::span
   // Built for every decode call, so it lists only what the fresh tokens can read (a session places a new agent one
   // token at a time, and indexing the whole cache for each of those was 3.4 % of a busy server's time).
   const int total = cached_size_ + static_cast<int>(fresh.size());
-  seen_.assign(total, -1);
   posed_bits_.assign((total + 63) / 64, 0);
   unposed_bits_.assign((total + 63) / 64, 0);
   if (fresh.empty()) return;
@@ -75,36 +74,17 @@ const SelfKeySelector::Step* SelfKeySelector::at(int step) const {
 
 void SelfKeySelector::select(int i, SelfKeys& out) {
   const DecoderToken& q = fresh_[i];
+  const int qj = cached_size_ + i;  // the query's own index: the sequence order is the index order
   out.posed.clear();
   out.unposed.clear();
-  candidates_.clear();
-  auto take = [&](const std::vector<int>& v) {
-    for (int j : v)
-      if (seen_[j] != i) {
-        seen_[j] = i;
-        candidates_.push_back(j);
-      }
-  };
-  if (const Step* now = at(q.step)) {
-    take(now->lights);
-    if (q.kind == TokenKind::motion) take(now->motion);
-    if (is_agent_state_group(q.kind)) take(now->group);
-  }
-  if (q.kind != TokenKind::motion)
-    if (const Step* prev = at(q.step - 1)) take(prev->motion);
-  if (is_agent_state_group(q.kind))
-    for (int s = q.step - window_ + 1; s < q.step; ++s)
-      if (const Step* earlier = at(s)) take(earlier->bounds);
-  if (q.object != kNoObject)
-    if (auto it = std::lower_bound(objects_.begin(), objects_.end(), q.object); it != objects_.end() && *it == q.object)
-      take(object_tokens_[it - objects_.begin()]);
-
   spatial_.clear();
   dist_.clear();
   order_.clear();
-  for (int j : candidates_) {
+  // The lists below hold only keys the mask allows (may_attend's rules, case by case), except the query's own
+  // object's tokens, which are checked. A key in two lists sets its bit twice; a spatial key (another object's
+  // token with a position) is in one list only, as the lists are disjoint by step and kind but for the own object's.
+  auto keep = [&](int j) {
     const DecoderToken& k = token(j);
-    if (!may_attend(q, k, window_)) continue;
     if (is_spatial_pair(q, k)) {
       spatial_.push_back(j);
       dist_.push_back(distance({q.pose.x, q.pose.y}, {k.pose.x, k.pose.y}));
@@ -112,8 +92,28 @@ void SelfKeySelector::select(int i, SelfKeys& out) {
     } else {
       set_bit(q.has_pose && k.has_pose ? posed_bits_ : unposed_bits_, j);
     }
+  };
+  auto keep_all = [&](const std::vector<int>& v) {
+    for (int j : v) keep(j);
+  };
+  const bool group = is_agent_state_group(q.kind);
+  if (const Step* now = at(q.step)) {
+    keep_all(now->lights);                                 // every query reads the lights of its step
+    if (q.kind == TokenKind::motion) keep_all(now->motion);  // and a motion token every motion token of it
+    if (group)  // an agent-state token its group up to itself
+      for (auto it = now->group.begin(); it != now->group.end() && *it <= qj; ++it) keep(*it);
   }
-  for (int pos : nearest_within(dist_, order_, limit_)) set_bit(posed_bits_, spatial_[pos]);
+  if (q.kind != TokenKind::motion)  // lights and agent-state tokens read the step before's motion
+    if (const Step* prev = at(q.step - 1)) keep_all(prev->motion);
+  if (group)  // and agent-state tokens every earlier SOS and EOS in the window
+    for (int s = q.step - window_ + 1; s < q.step; ++s)
+      if (const Step* earlier = at(s)) keep_all(earlier->bounds);
+  if (q.object != kNoObject)
+    if (auto it = std::lower_bound(objects_.begin(), objects_.end(), q.object); it != objects_.end() && *it == q.object)
+      for (int j : object_tokens_[it - objects_.begin()])
+        if (may_attend(q, token(j), window_)) keep(j);
+  nearest_within(dist_, order_, limit_, kept_, outside_);
+  for (int pos : kept_) set_bit(posed_bits_, spatial_[pos]);
   take_bits(posed_bits_, out.posed);
   take_bits(unposed_bits_, out.unposed);
 }

@@ -45,9 +45,8 @@ class SelfKeySelector {
   std::vector<Step> steps_;                      // by step - first_step_
   std::vector<int64_t> objects_;                 // the fresh tokens' objects, ascending, each once
   std::vector<std::vector<int>> object_tokens_;  // by position in objects_: that object's tokens, ascending
-  std::vector<int> seen_;  // the query that last took each key: candidates without a sort
   std::vector<uint64_t> posed_bits_, unposed_bits_;  // one query's kept keys by index (emitted in order, cleared)
-  std::vector<int> candidates_, spatial_;
+  std::vector<int> spatial_, kept_, outside_;
   std::vector<double> dist_;
   std::vector<int64_t> order_;
 };

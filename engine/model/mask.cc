@@ -33,12 +33,21 @@ bool is_spatial_pair(const DecoderToken& q, const DecoderToken& k) {
 
 std::vector<int> nearest_within(std::span<const double> distances, std::span<const int64_t> order,
                                 const NeighbourLimit& limit) {
+  std::vector<int> kept, outside;
+  nearest_within(distances, order, limit, kept, outside);
+  return kept;
+}
+
+void nearest_within(std::span<const double> distances, std::span<const int64_t> order, const NeighbourLimit& limit,
+                    std::vector<int>& kept, std::vector<int>& outside) {
   // Sorted by distance, the keys within the radius come first; so the kept set is the nearest min(k, inside) of the
   // keys inside, topped up to `always` from the nearest outside. Only a cut needs a selection, never a full sort.
   auto closer = [&](int a, int b) {
     return distances[a] < distances[b] || (distances[a] == distances[b] && order[a] < order[b]);
   };
-  std::vector<int> inside, outside;
+  std::vector<int>& inside = kept;
+  inside.clear();
+  outside.clear();
   for (int i = 0; i < static_cast<int>(distances.size()); ++i)
     (distances[i] <= limit.radius ? inside : outside).push_back(i);
   const int k = limit.k;
@@ -48,12 +57,11 @@ std::vector<int> nearest_within(std::span<const double> distances, std::span<con
   } else {
     const int wanted = std::min(limit.always, k) - static_cast<int>(inside.size());
     const int extra = std::min(wanted, static_cast<int>(outside.size()));
-    if (extra <= 0) return inside;  // built in ascending order, nothing selected: already sorted
+    if (extra <= 0) return;  // built in ascending order, nothing selected: already sorted
     std::nth_element(outside.begin(), outside.begin() + (extra - 1), outside.end(), closer);
     inside.insert(inside.end(), outside.begin(), outside.begin() + extra);
   }
   std::sort(inside.begin(), inside.end());
-  return inside;
 }
 
 }  // namespace ss

@@ -32,5 +32,8 @@ bool is_spatial_pair(const DecoderToken& q, const DecoderToken& k);
 // The result is in ascending order of position, so the kept keys stay in sequence order.
 std::vector<int> nearest_within(std::span<const double> distances, std::span<const int64_t> order,
                                 const NeighbourLimit& limit);
+// The same into `kept`, with `outside` as scratch: for a caller that selects for many queries.
+void nearest_within(std::span<const double> distances, std::span<const int64_t> order, const NeighbourLimit& limit,
+                    std::vector<int>& kept, std::vector<int>& outside);
 
 }  // namespace ss
