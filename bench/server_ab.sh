@@ -88,7 +88,7 @@ while [ "$round" -le "$ROUNDS" ]; do
     # shellcheck disable=SC2086  # load_flags is a list of words
     "$LOAD" --clients "$CLIENTS" --steps "$STEPS" --densify "$DENSIFY" --target "127.0.0.1:$PORT" --json $load_flags \
       > "$TMP/load.json" || true
-    cpu1=$(awk '{print $14 + $15}' "/proc/$pid/stat")
+    cpu1=$(awk '{print $14 + $15}' "/proc/$pid/stat" 2> /dev/null || echo none)  # none: the server had ended
     kill -TERM "$pid"
     wait "$pid" || true
     wait "$watcher"
@@ -98,20 +98,23 @@ out = {"label": sys.argv[1], "round": int(sys.argv[2]), "load_average": float(op
 out.update(json.load(open(sys.argv[3])))
 out["server_peak_rss_mb"] = int(open(sys.argv[4]).read()) / 1000
 steps = out["clients"] * out["steps"]
-out["server_cpu_ms_per_step"] = 1000 * (int(sys.argv[6]) - int(sys.argv[5])) / int(sys.argv[7]) / steps
+cpu_s = None if sys.argv[6] == "none" else (int(sys.argv[6]) - int(sys.argv[5])) / int(sys.argv[7])
+out["server_cpu_ms_per_step"] = None if cpu_s is None or steps == 0 else 1000 * cpu_s / steps
 print(json.dumps(out))' "$label" "$round" "$TMP/load.json" "$TMP/rss" "$cpu0" "$cpu1" "$(getconf CLK_TCK)" \
       | tee -a "$TMP/runs.jsonl"
   done
   round=$((round + 1))
 done
 
-# The summary, on stderr: each label's median steps/s and its ratio to the first label's, errors summed.
+# The summary, on stderr: each label's median steps/s and CPU time per step and their ratios to the first label's,
+# errors summed.
 /usr/bin/python3 - "$TMP/runs.jsonl" >&2 <<'PY'
 import json, statistics, sys
 runs = [json.loads(line) for line in open(sys.argv[1])]
 labels = list(dict.fromkeys(r["label"] for r in runs))
 med = {l: statistics.median(r["steps_per_second"] for r in runs if r["label"] == l) for l in labels}
-cpu = {l: statistics.median(r["server_cpu_ms_per_step"] for r in runs if r["label"] == l) for l in labels}
+cpu = {l: statistics.median([r["server_cpu_ms_per_step"] for r in runs if r["label"] == l
+                              and r["server_cpu_ms_per_step"] is not None] or [float("nan")]) for l in labels}
 for l in labels:
     mine = [r for r in runs if r["label"] == l]
     rates = ", ".join("%.1f" % r["steps_per_second"] for r in mine)
@@ -119,6 +122,7 @@ for l in labels:
     p99 = statistics.median(r["latency_ms_p99"] for r in mine)
     rss = [r["server_peak_rss_mb"] for r in mine]
     print(f"{l}: steps/s {rates}; median {med[l]:.1f} ({med[l] / med[labels[0]]:.2f}x {labels[0]}); "
-          f"CPU {cpu[l]:.1f} ms/step ({cpu[labels[0]] / cpu[l]:.2f}x); p50 {p50:.0f} ms, p99 {p99:.0f} ms; errors {sum(r['errors'] for r in mine)}; "
+          f"CPU {cpu[l]:.1f} ms/step ({cpu[labels[0]] / cpu[l]:.2f}x); p50 {p50:.0f} ms, p99 {p99:.0f} ms; "
+          f"errors {sum(r['errors'] for r in mine)}; "
           f"peak RSS {min(rss):.0f}-{max(rss):.0f} MB")
 PY

@@ -92,7 +92,8 @@ void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std:
     for (size_t i = first; i < last; ++i) {
       const Eigen::Index n = static_cast<Eigen::Index>(features[i].size()) / kRelationFeatures;
       sets[i]->relation.resize(h.cols(), n);
-      transpose_into(h.data() + row * h.cols(), static_cast<int>(n), static_cast<int>(h.cols()), sets[i]->relation.data());
+      transpose_into(h.data() + row * h.cols(), static_cast<int>(n), static_cast<int>(h.cols()),
+                     sets[i]->relation.data());
       row += n;
     }
     first = last;

@@ -79,7 +79,8 @@ TEST(SelfKeySelector, EveryQueryGetsTheKeysTheMaskAndTheLimitDefine) {
   const int window = 4;
   int checked = 0, cut = 0;
   for (size_t first = 0; first < all.size();) {
-    // The call: the run of tokens of one kind class at one step, or a single token every third call.
+    // The call: one token where it starts at a multiple of three (a new agent's tokens come one call at a time),
+    // else the run of tokens of one kind class at one step (a step's lights, its group, its motion).
     size_t last = first + 1;
     auto kind_class = [](const DecoderToken& t) { return is_agent_state_group(t.kind) ? 1 : static_cast<int>(t.kind); };
     if (first % 3 != 0)
