@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <immintrin.h>
 
 #include "engine/model/attention_kernels.h"
 #include "engine/model/matmul_bf16.h"
@@ -37,38 +36,6 @@ Mat relation_columns(const Mat& features, const RelationParams& p) {
   return relation_embedding(features, p).transpose();
 }
 
-namespace {
-
-// dst (cols x rows) = src (rows x cols) transposed, both row-major. With AVX-512 in 16 x 16 blocks, the edges masked:
-// Eigen's element-by-element transpose of each set's columns was 2 % of a busy server's time.
-void transpose_into(const float* src, int rows, int cols, float* dst) {
-#if defined(__AVX512F__)
-  using Eigen::internal::Packet16f;
-  auto lanes = [](int n) { return n >= 16 ? __mmask16(0xffff) : static_cast<__mmask16>((1u << n) - 1); };
-  for (int i0 = 0; i0 < rows; i0 += 16) {
-    const int ni = std::min(16, rows - i0);
-    for (int c0 = 0; c0 < cols; c0 += 16) {
-      const int nc = std::min(16, cols - c0);
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wignored-attributes"  // Packet16f as a template argument, as in Eigen's own code
-      Eigen::internal::PacketBlock<Packet16f, 16> b;
-#pragma GCC diagnostic pop
-      for (int i = 0; i < 16; ++i)
-        b.packet[i] = i < ni ? _mm512_maskz_loadu_ps(lanes(nc), src + static_cast<size_t>(i0 + i) * cols + c0)
-                             : _mm512_setzero_ps();
-      Eigen::internal::ptranspose(b);
-      for (int c = 0; c < nc; ++c)
-        _mm512_mask_storeu_ps(dst + static_cast<size_t>(c0 + c) * rows + i0, lanes(ni), b.packet[c]);
-    }
-  }
-#else
-  for (int i = 0; i < rows; ++i)
-    for (int c = 0; c < cols; ++c) dst[static_cast<size_t>(c) * rows + i] = src[static_cast<size_t>(i) * cols + c];
-#endif
-}
-
-}  // namespace
-
 void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
                           const RelationParams& p) {
   // In chunks of about 2,048 rows, so that a chunk's embeddings (2,048 x relation_dim floats, 256 KB) are still in
@@ -92,8 +59,8 @@ void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std:
     for (size_t i = first; i < last; ++i) {
       const Eigen::Index n = static_cast<Eigen::Index>(features[i].size()) / kRelationFeatures;
       sets[i]->relation.resize(h.cols(), n);
-      transpose_into(h.data() + row * h.cols(), static_cast<int>(n), static_cast<int>(h.cols()),
-                     sets[i]->relation.data());
+      kernel_transpose(h.data() + row * h.cols(), static_cast<int>(n), static_cast<int>(h.cols()),
+                       sets[i]->relation.data());
       row += n;
     }
     first = last;

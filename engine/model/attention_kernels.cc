@@ -72,6 +72,11 @@ void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float s
   }
 }
 
+void kernel_transpose_plain(const float* src, int rows, int cols, float* dst) {
+  for (int i = 0; i < rows; ++i)
+    for (int c = 0; c < cols; ++c) dst[static_cast<size_t>(c) * rows + i] = src[static_cast<size_t>(i) * cols + c];
+}
+
 // binary16 <-> binary32 in software (the plain forms and builds without F16C).
 float half_to_float(uint16_t h) {
   const uint32_t sign = static_cast<uint32_t>(h & 0x8000) << 16;
@@ -498,6 +503,27 @@ void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, 
   }
 }
 
+// In 16 x 16 blocks, the edges masked.
+void kernel_transpose(const float* src, int rows, int cols, float* dst) {
+  using Eigen::internal::Packet16f;
+  for (int i0 = 0; i0 < rows; i0 += 16) {
+    const int ni = std::min(16, rows - i0);
+    for (int c0 = 0; c0 < cols; c0 += 16) {
+      const int nc = std::min(16, cols - c0);
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wignored-attributes"  // Packet16f as a template argument, as in Eigen's own code
+      Eigen::internal::PacketBlock<Packet16f, 16> b;
+#pragma GCC diagnostic pop
+      for (int i = 0; i < 16; ++i)
+        b.packet[i] = i < ni ? _mm512_maskz_loadu_ps(first_lanes(nc), src + static_cast<size_t>(i0 + i) * cols + c0)
+                             : _mm512_setzero_ps();
+      Eigen::internal::ptranspose(b);
+      for (int c = 0; c < nc; ++c)
+        _mm512_mask_storeu_ps(dst + static_cast<size_t>(c0 + c) * rows + i0, first_lanes(ni), b.packet[c]);
+    }
+  }
+}
+
 #elif defined(__AVX2__) && defined(__FMA__)
 namespace {
 
@@ -691,6 +717,10 @@ void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, 
   }
 }
 
+void kernel_transpose(const float* src, int rows, int cols, float* dst) {
+  kernel_transpose_plain(src, rows, cols, dst);
+}
+
 #else  // neither AVX-512 nor AVX2 with FMA: the plain forms
 
 void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
@@ -711,6 +741,10 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
 }
 void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums) {
   kernel_softmax_rows_plain(s, rows, cols, stride, scale, inv_sums);
+}
+
+void kernel_transpose(const float* src, int rows, int cols, float* dst) {
+  kernel_transpose_plain(src, rows, cols, dst);
 }
 
 #endif

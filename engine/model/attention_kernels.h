@@ -32,6 +32,10 @@ void kernel_weighted_relation(const AttentionShape& s, const float* a, const flo
 // reciprocal of row i's sum: a caller whose next step is linear in the weights scales its results instead.
 void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums = nullptr);
 
+// dst (cols x rows) = src (rows x cols) transposed, both row-major: a key set's relation columns from its embeddings
+// (Eigen's element-by-element transpose of them was 2 % of a busy server's time).
+void kernel_transpose(const float* src, int rows, int cols, float* dst);
+
 // Keys and values stored as IEEE half floats (binary16, as uint16_t), converted to float for the math: the same
 // sums as the forms above on the converted rows.
 void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
@@ -56,6 +60,7 @@ void kernel_weighted_values_plain(const AttentionShape& s, const float* a, const
 void kernel_weighted_relation_plain(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                                     float* out);
 void kernel_softmax_rows_plain(float* s, int rows, int cols, int stride, float scale, float* inv_sums = nullptr);
+void kernel_transpose_plain(const float* src, int rows, int cols, float* dst);
 void kernel_key_scores_f16_plain(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
                                  float* scores);
 void kernel_weighted_values_f16_plain(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys,

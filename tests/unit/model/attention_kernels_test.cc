@@ -173,6 +173,19 @@ TEST(Kernels, SoftmaxWeightsMatchStdExpRelatively) {
   EXPECT_EQ(fast[m - 1], 0.0f);
 }
 
+// The blocked transpose moves every element where the plain one does: shapes on both sides of a block's edges.
+TEST(Kernels, TransposeEqualsThePlainTranspose) {
+  std::mt19937 rng(3);
+  for (int rows : {0, 1, 15, 16, 17, 45, 300})
+    for (int cols : {1, 7, 16, 17, 32, 33}) {
+      const std::vector<float> src = random_floats(static_cast<size_t>(rows) * cols, rng);
+      std::vector<float> fast(src.size(), -1.0f), plain(src.size(), -2.0f);
+      kernel_transpose(src.data(), rows, cols, fast.data());
+      kernel_transpose_plain(src.data(), rows, cols, plain.data());
+      EXPECT_EQ(fast, plain) << rows << " x " << cols;
+    }
+}
+
 INSTANTIATE_TEST_SUITE_P(Shapes, KernelTest,
                          ::testing::Values(Case{{4, 32, 32}, 1}, Case{{4, 32, 32}, 15}, Case{{4, 32, 32}, 16},
                                            Case{{4, 32, 32}, 17}, Case{{4, 32, 32}, 250}, Case{{4, 16, 32}, 33},
