@@ -119,7 +119,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
     la.track = i;
     la.steps = downsample_track(scenario->tracks[i]);
     // Tokens up to t0 only: the log's later steps are never replayed, and fitting them (a search over the motion
-    // vocabulary per step) was 1.6 % of a busy server's time. Each token depends only on the steps before it.
+    // vocabulary per step) was 2.3 % of a busy server's time. Each token depends only on the steps before it.
     la.motion = tokenize_motion(std::span(la.steps).first(std::min(la.steps.size(), static_cast<size_t>(t0) + 1)));
     la.first_step = t0;
     while (!from_now && la.first_step > 0 && la.steps[la.first_step - 1].valid) --la.first_step;
