@@ -5,6 +5,7 @@
 
 #include "engine/model/attention_kernels.h"
 #include "engine/model/matmul_bf16.h"
+#include "engine/model/relation_bf16.h"
 
 namespace ss {
 
@@ -38,32 +39,21 @@ Mat relation_columns(const Mat& features, const RelationParams& p) {
 
 void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
                           const RelationParams& p) {
-  // In chunks of about 2,048 rows, so that a chunk's embeddings (2,048 x relation_dim floats, 256 KB) are still in
-  // the core's cache when they are copied out: one product for a whole call's pairs (40,000 in a busy server's
-  // steps) made the server slower and its memory larger. Only when the second layer runs in bf16: a row's
-  // bits then do not depend on the rows beside it (as for the first layer's 7-deep fp32 product; tested), while
-  // Eigen's fp32 product of the second layer gives a row other bits in another batch. Each set alone then, as a
-  // set's columns must not depend on the call it is made in: a restored session rebuilds its cache's map key sets
-  // in other calls than the first run made them in, and must continue bit for bit.
-  const size_t chunk_rows = p.fc2.bf16 ? 2048 : 0;
-  Mat chunk;
-  for (size_t first = 0; first < sets.size();) {
-    size_t last = first, rows = 0;
-    while (last < sets.size() && (last == first || rows + features[last].size() / kRelationFeatures <= chunk_rows))
-      rows += features[last++].size() / kRelationFeatures;
-    chunk.resize(static_cast<Eigen::Index>(rows), kRelationFeatures);
-    float* at = chunk.data();
-    for (size_t i = first; i < last; ++i) at = std::copy(features[i].begin(), features[i].end(), at);
-    const Mat h = relation_embedding(chunk, p);
-    Eigen::Index row = 0;
-    for (size_t i = first; i < last; ++i) {
-      const Eigen::Index n = static_cast<Eigen::Index>(features[i].size()) / kRelationFeatures;
+  // Each set alone, as a set's columns must not depend on the call it is made in: a restored session rebuilds its
+  // cache's map key sets in other calls than the first run made them in, and must continue bit for bit. With the
+  // second layer in bf16, the fused pass (relation_bf16.h) gives the AVX512-BF16 product path's bits without its
+  // set-up, passes and transpose, 1.5x as fast (a busy server builds 40,000 columns per decode call).
+  const bool fused = relation_columns_bf16_fits(p.fc1, p.fc2);
+  for (size_t i = 0; i < sets.size(); ++i) {
+    const int n = static_cast<int>(features[i].size()) / kRelationFeatures;
+    if (fused) {
+      sets[i]->relation.resize(p.fc2.out, n);
+      relation_columns_bf16(features[i].data(), n, p.fc1, p.fc2, sets[i]->relation.data());
+    } else {
+      const Mat h = relation_embedding(MatMap(features[i].data(), n, kRelationFeatures), p);
       sets[i]->relation.resize(h.cols(), n);
-      kernel_transpose(h.data() + row * h.cols(), static_cast<int>(n), static_cast<int>(h.cols()),
-                       sets[i]->relation.data());
-      row += n;
+      kernel_transpose(h.data(), n, static_cast<int>(h.cols()), sets[i]->relation.data());
     }
-    first = last;
   }
 }
 

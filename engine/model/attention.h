@@ -79,9 +79,8 @@ struct QueryKeys {
 };
 
 // Each set's relation columns from its feature rows (features[i]: set i's posed keys x kRelationFeatures, row-major),
-// the same bits as relation_columns on each alone. With the MLP's second layer in bf16, many sets' rows go through
-// it at once (one product per layer for a chunk of sets instead of one per query, whose set-up cost more than its
-// arithmetic); in fp32, each set alone.
+// the same bits as relation_columns on each alone (with the MLP's second layer in bf16: as with the AVX512-BF16
+// product, in one fused pass, engine/model/relation_bf16.h).
 void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
                           const RelationParams& p);
 
