@@ -42,7 +42,8 @@ void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std:
   // Each set alone, as a set's columns must not depend on the call it is made in: a restored session rebuilds its
   // cache's map key sets in other calls than the first run made them in, and must continue bit for bit. With the
   // second layer in bf16, the fused pass (relation_bf16.h) gives the AVX512-BF16 product path's bits without its
-  // set-up, passes and transpose, 1.5x as fast (a busy server builds 40,000 columns per decode call).
+  // set-up, passes and transpose, 1.3-1.5x as fast (bench/relation_bench; a busy server builds 40,000 columns per
+  // decode call).
   const bool fused = relation_columns_bf16_fits(p.fc1, p.fc2);
   for (size_t i = 0; i < sets.size(); ++i) {
     const int n = static_cast<int>(features[i].size()) / kRelationFeatures;

@@ -11,7 +11,7 @@
 namespace ss {
 
 // Whether relation_columns_bf16 runs these layers: fc2 packed in bf16, fc1 7 features wide (kRelationFeatures) into
-// a multiple of 32 that fc2 reads, at most 128 wide, both with biases, and the CPU has AVX512-BF16.
+// a multiple of 32 (at most 256) that fc2 reads, both with biases, and the CPU has AVX512-BF16.
 bool relation_columns_bf16_fits(const LinearParams& fc1, const LinearParams& fc2);
 // out (fc2.out x n, row-major: column j is pair j) from f (n x 7, row-major). Requires relation_columns_bf16_fits.
 void relation_columns_bf16(const float* f, int n, const LinearParams& fc1, const LinearParams& fc2, float* out);
