@@ -34,7 +34,10 @@ Mat relation_embedding(const Mat& features, const RelationParams& p) {
 }
 
 Mat relation_columns(const Mat& features, const RelationParams& p) {
-  return relation_embedding(features, p).transpose();
+  const Mat h = relation_embedding(features, p);
+  Mat columns(h.cols(), h.rows());
+  kernel_transpose(h.data(), static_cast<int>(h.rows()), static_cast<int>(h.cols()), columns.data());
+  return columns;
 }
 
 void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std::vector<float>> features,
@@ -51,9 +54,7 @@ void set_relation_columns(std::span<QueryKeys* const> sets, std::span<const std:
       sets[i]->relation.resize(p.fc2.out, n);
       relation_columns_bf16(features[i].data(), n, p.fc1, p.fc2, sets[i]->relation.data());
     } else {
-      const Mat h = relation_embedding(MatMap(features[i].data(), n, kRelationFeatures), p);
-      sets[i]->relation.resize(h.cols(), n);
-      kernel_transpose(h.data(), n, static_cast<int>(h.cols()), sets[i]->relation.data());
+      sets[i]->relation = relation_columns(MatMap(features[i].data(), n, kRelationFeatures), p);
     }
   }
 }
