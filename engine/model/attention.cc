@@ -240,11 +240,13 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
       return;
     }
     if (next) prefetch_relation_start(*next);
-    // Keys 0..m-1 of k in order (a whole map) stored as floats: read in place; otherwise gather the rows once for
-    // the group (converting half floats).
-    const bool identity = !kv.half() && m == kv.rows && std::is_sorted(set->keys.begin(), set->keys.end()) &&
-                          set->keys.front() == 0 && set->keys.back() == m - 1;
-    if (!identity) {
+    // Keys 0..m-1 in order (a whole map): its bf16 tiles where it has them, else its floats read in place;
+    // otherwise gather the rows once for the group (converting half floats).
+    const bool whole = m == kv.rows && std::is_sorted(set->keys.begin(), set->keys.end()) &&
+                       set->keys.front() == 0 && set->keys.back() == m - 1;
+    const bool bf16 = whole && kv.k_bf16;
+    const bool identity = whole && !kv.half();
+    if (!identity && !bf16) {
       t.kg.resize(m, d);
       t.vg.resize(m, d);
       for (int j = 0; j < m; ++j) {
@@ -258,9 +260,9 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
         }
       }
     }
+    // The keys and values as floats, read by the fp32 products only.
     const MatMap kk = identity ? MatMap(kv.k, m, d) : MatMap(t.kg.data(), m, d);
     const MatMap vv = identity ? MatMap(kv.v, m, d) : MatMap(t.vg.data(), m, d);
-    const bool bf16 = identity && kv.k_bf16;  // the whole map's keys and values are in bf16 tiles too
     for (int h = 0; h < heads; ++h) {
       // Scores, queries down and keys across: g x m.
       if (bf16) {

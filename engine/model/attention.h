@@ -92,8 +92,8 @@ struct KeyValueRows {
                                                  // floats: then queries with keys of their own read these, and
                                                  // only groups that read every row in order read k
   int rows = 0, d = 0;
-  // Optional, with float storage: per head, the keys (rows x dh) and the values transposed (dh x rows) in bf16
-  // tiles. Queries that read every row together then run their two products in bf16.
+  // Optional: per head, the keys (rows x dh) and the values transposed (dh x rows) in bf16 tiles. Queries that read
+  // every row together then run their two products in bf16.
   const Bf16Weight *k_bf16 = nullptr, *v_bf16 = nullptr;
 
   KeyValueRows() = default;

@@ -27,13 +27,14 @@ struct MapContext {
   std::vector<MapSegment> segments;  // nearest the focus first; the map token i is segment i
   SegmentIndex index;
   Mat tokens;                        // M x d: encoder output + map-id embedding
-  std::vector<Mat> cross_keys, cross_values;  // per decoder layer, M x d
+  std::vector<Mat> cross_keys, cross_values;  // per decoder layer, M x d; empty past the first layer when the
+                                              // halves and the bf16 tiles below are both kept (never read then)
   // With bf16 products, per decoder layer and head ([layer * heads + h]): the keys (M x dh) and the values
   // transposed (dh x M) in bf16 tiles, for the queries that read the whole map together. Empty in fp32.
   std::vector<Bf16Weight> cross_keys_bf16, cross_values_bf16;
   // With fp16 keys and values, per decoder layer: the keys and values in half floats (M x d). Queries with keys of
   // their own read these, half the bytes of cross_keys (measured: bench 0.93x); queries that read the whole map
-  // together read cross_keys or the bf16 tiles. Empty with fp32 keys and values.
+  // together read the bf16 tiles, or cross_keys without them. Empty with fp32 keys and values.
   std::vector<std::vector<uint16_t>> cross_keys_h, cross_values_h;
   Mat pointer_keys;                  // M x d: head.map_segment.key applied to the tokens
   std::vector<Anchor> anchors;       // each segment's pose as a relation anchor (step 0)

@@ -214,21 +214,34 @@ TEST(Fp16Trained, HalfFloatKeysStayCloseToFloatKeysWithTheShippedModel) {
 }
 
 // With fp16 keys and values the map's cross-attention keys and values are kept in half floats as well (the queries
-// with keys of their own read those), each the float key rounded; an fp32 model keeps floats only.
+// with keys of their own read those), each the float key rounded (the fp32 model's, which keeps floats only). With
+// bf16 tiles too, the floats past the first layer are not kept (nothing reads them), and the rollout is the same as
+// with them: the queries that read the whole map take the tiles either way.
 TEST(Fp16Map, TheMapsHalfFloatKeysAreItsFloatKeysRounded) {
-  testing::World f32 = load_world("small", 1, kv(KvPrecision::fp32)), f16 = load_world("small", 1, kv(KvPrecision::fp16));
-  EXPECT_TRUE(f32.map->cross_keys_h.empty());
-  EXPECT_TRUE(f32.map->cross_values_h.empty());
-  const MapContext& m = *f16.map;
-  ASSERT_EQ(m.cross_keys_h.size(), m.cross_keys.size());
-  ASSERT_EQ(m.cross_values_h.size(), m.cross_values.size());
-  for (size_t l = 0; l < m.cross_keys.size(); ++l)
-    for (const auto& [floats, halves] : {std::pair{&m.cross_keys[l], &m.cross_keys_h[l]}, {&m.cross_values[l], &m.cross_values_h[l]}}) {
-      ASSERT_EQ(halves->size(), static_cast<size_t>(floats->size()));
-      for (Eigen::Index i = 0; i < floats->size(); ++i)
-        ASSERT_EQ((*halves)[i], float_to_half(floats->data()[i])) << "layer " << l << " element " << i;
+  for (const MatmulPrecision products : {MatmulPrecision::fp32, MatmulPrecision::bf16}) {
+    if (products == MatmulPrecision::bf16 && !bf16_products_available()) continue;
+    ModelOptions o32 = kv(KvPrecision::fp32), o16 = kv(KvPrecision::fp16);
+    o32.matmul_precision = o16.matmul_precision = products;
+    testing::World f32 = load_world("small", 1, o32), f16 = load_world("small", 1, o16);
+    EXPECT_TRUE(f32.map->cross_keys_h.empty());
+    EXPECT_TRUE(f32.map->cross_values_h.empty());
+    const MapContext& m = *f16.map;
+    const MapContext& floats_of = *f32.map;
+    ASSERT_EQ(m.cross_keys_h.size(), floats_of.cross_keys.size());
+    ASSERT_EQ(m.cross_values_h.size(), floats_of.cross_values.size());
+    for (size_t l = 0; l < m.cross_keys_h.size(); ++l) {
+      const bool floats_kept = l == 0 || products == MatmulPrecision::fp32;
+      EXPECT_EQ(m.cross_keys[l].size() != 0, floats_kept) << "layer " << l;
+      EXPECT_EQ(m.cross_values[l].size() != 0, floats_kept) << "layer " << l;
+      for (const auto& [floats, halves] : {std::pair{&floats_of.cross_keys[l], &m.cross_keys_h[l]},
+                                           {&floats_of.cross_values[l], &m.cross_values_h[l]}}) {
+        ASSERT_EQ(halves->size(), static_cast<size_t>(floats->size()));
+        for (Eigen::Index i = 0; i < floats->size(); ++i)
+          ASSERT_EQ((*halves)[i], float_to_half(floats->data()[i])) << "layer " << l << " element " << i;
+      }
     }
-  EXPECT_GT(f16.map->bytes(), f32.map->bytes());
+    if (products == MatmulPrecision::fp32) EXPECT_GT(f16.map->bytes(), f32.map->bytes());
+  }
 }
 
 TEST(Bf16Products, StayCloseToFp32) {
