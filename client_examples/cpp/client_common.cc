@@ -53,12 +53,13 @@ std::unique_ptr<pb::Simulator::Stub> connect(const std::string& target) {
   return pb::Simulator::NewStub(grpc::CreateChannel(target, grpc::InsecureChannelCredentials()));
 }
 
-grpc::Status first_scenario(pb::Simulator::Stub& stub, std::string* name) {
+grpc::Status scenario_names(pb::Simulator::Stub& stub, std::vector<std::string>* names) {
   grpc::ClientContext ctx;
   pb::ListScenariosResponse list;
   grpc::Status st = stub.ListScenarios(&ctx, {}, &list);
-  name->clear();
-  if (st.ok() && list.scenarios_size() > 0) *name = list.scenarios(0).name();
+  names->clear();
+  if (st.ok())
+    for (const pb::ScenarioInfo& s : list.scenarios()) names->push_back(s.name());
   return st;
 }
 

@@ -1,4 +1,4 @@
-// What the example C++ clients share: their flags, the connection, the first scenario, the ego's controller and
+// What the example C++ clients share: their flags, the connection, the scenarios' names, the ego's controller and
 // closing a session.
 #pragma once
 
@@ -47,8 +47,8 @@ void route_by(grpc::ClientContext* ctx, const std::string& session_id);
 // A stub over an insecure channel: the examples talk to a server on the same host or network.
 std::unique_ptr<pb::Simulator::Stub> connect(const std::string& target);
 
-// The name of the server's first scenario into `*name`; empty when the server has none.
-grpc::Status first_scenario(pb::Simulator::Stub& stub, std::string* name);
+// The names of the server's scenarios, in its order, into `*names`; empty when it has none.
+grpc::Status scenario_names(pb::Simulator::Stub& stub, std::vector<std::string>* names);
 
 // The examples' ego controller: every controlled agent keeps its heading and speed for the next 0.5 s.
 pb::StepSceneRequest keep_heading_and_speed(const std::string& session_id, const pb::Tick& tick);

@@ -24,10 +24,10 @@ int main(int argc, char** argv) {
   };
   pb::CreateSessionRequest create;
   {
-    std::string scenario;
-    if (auto st = client::first_scenario(*stub, &scenario); !st.ok()) return fail("ListScenarios", st);
-    if (scenario.empty()) return std::fprintf(stderr, "the server has no scenarios\n"), 1;
-    create.set_scenario_name(scenario);
+    std::vector<std::string> names;
+    if (auto st = client::scenario_names(*stub, &names); !st.ok()) return fail("ListScenarios", st);
+    if (names.empty()) return std::fprintf(stderr, "the server has no scenarios\n"), 1;
+    create.set_scenario_name(names[0]);
   }
   pb::CreateSessionResponse session;
   {

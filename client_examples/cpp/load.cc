@@ -1,7 +1,9 @@
-// scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] [--densify A]
-//                    [--no-motion-reject]
+// scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME | --scenarios K] [--route]
+//                    [--densify A] [--no-motion-reject]
 // N concurrent clients, each with its own session, each stepping M times as fast as the server answers (the ego
-// keeps its heading and speed). Reports steps per second over the whole run, per-step latency percentiles and
+// keeps its heading and speed). Every session runs on one scenario (--scenario NAME, else the server's first), or with
+// --scenarios K on the server's first K in turn (client c on the (c mod K)-th): K maps held at once, as a server
+// serving many scenarios holds them. Reports steps per second over the whole run, per-step latency percentiles and
 // errors. --route: each client proposes its session id and sends it as x-session-id metadata on every call, for a
 // session-affine router (deploy/router/); the JSON then lists the ids. --densify A: densify mode, the log's agents
 // topped up with sampled ones to A per session (the speed goals' 64-agent sessions). --no-motion-reject: sessions
@@ -23,28 +25,38 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   client::Flags flags;
-  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "densify"},
+  if (!client::parse_flags(argc, argv, {"clients", "steps", "target", "scenario", "scenarios", "densify"},
                            {"json", "route", "no-motion-reject"}, &flags)) {
     std::fprintf(stderr,
-                 "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME] [--route] "
-                 "[--densify A] [--no-motion-reject]\n");
+                 "usage: scenestreamer-load --clients N --steps M --target ADDR [--json] [--scenario NAME | "
+                 "--scenarios K] [--route] [--densify A] [--no-motion-reject]\n");
     return 2;
   }
   const int clients = client::flag_int(flags, "clients", 4);
   const int steps = client::flag_int(flags, "steps", 20);
   const int densify = client::flag_int(flags, "densify", 0);
   const std::string target = client::flag_string(flags, "target", client::kDefaultTarget);
-  std::string scenario = client::flag_string(flags, "scenario", "");
+  const std::string scenario = client::flag_string(flags, "scenario", "");
+  const int spread = client::flag_int(flags, "scenarios", 1);
   const bool json = flags.switches.count("json") > 0;
   const bool route = flags.switches.count("route") > 0;
   const bool motion_reject = flags.switches.count("no-motion-reject") == 0;
   if (clients < 1 || steps < 1) return std::fprintf(stderr, "--clients and --steps must be positive\n"), 2;
   if (flags.values.count("densify") && densify < 1) return std::fprintf(stderr, "--densify must be positive\n"), 2;
+  if (spread < 1) return std::fprintf(stderr, "--scenarios must be positive\n"), 2;
+  if (!scenario.empty() && flags.values.count("scenarios"))
+    return std::fprintf(stderr, "--scenario and --scenarios exclude each other\n"), 2;
   auto stub = client::connect(target);
+  std::vector<std::string> scenarios{scenario};  // client c runs on scenarios[c % size]
   if (scenario.empty()) {
-    auto st = client::first_scenario(*stub, &scenario);
-    if (!st.ok() || scenario.empty())
+    auto st = client::scenario_names(*stub, &scenarios);
+    if (!st.ok())
       return std::fprintf(stderr, "ListScenarios on %s: %s\n", target.c_str(), st.error_message().c_str()), 1;
+    if (static_cast<int>(scenarios.size()) < spread)
+      return std::fprintf(stderr, "the server at %s has %zu scenarios; the load asks for %d (--scenarios)\n",
+                          target.c_str(), scenarios.size(), spread),
+             1;
+    scenarios.resize(spread);
   }
   std::atomic<int> errors{0};
   std::mutex mu;
@@ -62,7 +74,7 @@ int main(int argc, char** argv) {
   for (int c = 0; c < clients; ++c)
     threads.emplace_back([&, c] {
       pb::CreateSessionRequest create;
-      create.set_scenario_name(scenario);
+      create.set_scenario_name(scenarios[c % scenarios.size()]);
       create.set_seed(static_cast<uint64_t>(c));
       if (densify > 0) {
         create.set_mode(pb::MODE_DENSIFY);
@@ -112,15 +124,17 @@ int main(int argc, char** argv) {
   for (int a : last_tick_agents) agents_mean += a;
   if (!last_tick_agents.empty()) agents_mean /= static_cast<double>(last_tick_agents.size());
   if (json) {
-    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"densify", densify},
+    nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"scenarios", scenarios.size()},
+                                  {"densify", densify},
                                   {"motion_reject", motion_reject}, {"errors", errors.load()},
                                   {"steps_per_second", sps}, {"latency_ms_p50", pct(0.5)},
                                   {"latency_ms_p99", pct(0.99)}, {"agents_last_tick_mean", agents_mean}};
     if (route) out["session_ids"] = session_ids;
     std::puts(ss::json_text(out, -1).c_str());
   } else {
+    const std::string on = scenarios.size() == 1 ? scenarios[0] : std::to_string(scenarios.size()) + " scenarios";
     std::printf("%d clients x %d steps on %s: %.2f steps/s, latency p50 %.1f ms, p99 %.1f ms, %d errors%s%s\n",
-                clients, steps, scenario.c_str(), sps, pct(0.5), pct(0.99), errors.load(),
+                clients, steps, on.c_str(), sps, pct(0.5), pct(0.99), errors.load(),
                 first_error.empty() ? "" : "; first: ", first_error.c_str());
   }
   return errors ? 1 : 0;

@@ -33,9 +33,10 @@ class ClientsTest(ServerTestCase):
                             "--json"], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         out = json.loads(r.stdout)
-        self.assertEqual(set(out), {"clients", "steps", "densify", "motion_reject", "errors", "steps_per_second",
-                                    "latency_ms_p50", "latency_ms_p99", "agents_last_tick_mean"})
-        self.assertEqual((out["clients"], out["steps"], out["densify"], out["errors"]), (4, 3, 0, 0))
+        self.assertEqual(set(out), {"clients", "steps", "scenarios", "densify", "motion_reject", "errors",
+                                    "steps_per_second", "latency_ms_p50", "latency_ms_p99", "agents_last_tick_mean"})
+        self.assertEqual((out["clients"], out["steps"], out["scenarios"], out["densify"], out["errors"]),
+                         (4, 3, 1, 0, 0))
         self.assertTrue(out["motion_reject"])
         self.assertGreater(out["steps_per_second"], 0)
         self.assertLessEqual(out["latency_ms_p50"], out["latency_ms_p99"])
@@ -60,6 +61,28 @@ class ClientsTest(ServerTestCase):
         bad = subprocess.run(args + ["--densify", "0"], capture_output=True, text=True, timeout=60)
         self.assertEqual(bad.returncode, 2)
         self.assertIn("--densify must be positive", bad.stderr)
+
+    def test_cpp_load_generator_spreads_over_scenarios(self):
+        # --scenarios K: client c on the server's (c mod K)-th scenario, so K maps are held at once.
+        names = [s.name for s in self.server.stub.ListScenarios(pb.ListScenariosRequest()).scenarios]
+        self.assertGreaterEqual(len(names), 2)
+        args = [os.environ["SS_LOAD"], "--clients", "4", "--steps", "2", "--target", self.server.target, "--json"]
+        before = len(self.server.output())  # the server is the class's: other tests' sessions are in its log too
+        r = subprocess.run(args + ["--scenarios", "2"], capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        out = json.loads(r.stdout)
+        self.assertEqual((out["scenarios"], out["errors"]), (2, 0))
+        log = self.server.output()[before:]
+        for name in names[:2]:
+            self.assertEqual(log.count(f": created on {name} "), 2, name)
+        for flags, code, message in ((["--scenarios", "0"], 2, "--scenarios must be positive"),
+                                     (["--scenarios", "2", "--scenario", names[0]], 2,
+                                      "--scenario and --scenarios exclude each other"),
+                                     (["--scenarios", str(len(names) + 1)], 1,
+                                      f"has {len(names)} scenarios; the load asks for {len(names) + 1}")):
+            bad = subprocess.run(args + flags, capture_output=True, text=True, timeout=60)
+            self.assertEqual(bad.returncode, code, bad.stderr)
+            self.assertIn(message, bad.stderr)
 
     def test_routing_metadata(self):
         # What a session-affine router needs: with route=True the Python package proposes the id and sends it as

@@ -3,6 +3,7 @@
 #include "server/allocator.h"
 
 #include <gtest/gtest.h>
+#include <jemalloc/jemalloc.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -17,6 +18,15 @@ TEST(AllocatorTest, JemallocServesMalloc) {
   const absl::StatusOr<std::string> version = allocator_version();
   ASSERT_TRUE(version.ok()) << version.status();
   EXPECT_EQ(version->rfind("jemalloc ", 0), 0u) << *version;
+}
+
+// The project's settings (server/malloc_conf.cc) reach jemalloc: no arena of its own for blocks of 8 MiB and more,
+// which would give their pages back as soon as they are freed (README, Speed: a server on many maps faulted them in
+// again and again).
+TEST(AllocatorTest, TheProjectsSettingsReachJemalloc) {
+  size_t threshold = 1, size = sizeof threshold;
+  ASSERT_EQ(mallctl("opt.oversize_threshold", &threshold, &size, nullptr, 0), 0);
+  EXPECT_EQ(threshold, 0u) << "malloc_conf's oversize_threshold:0 did not reach jemalloc";
 }
 
 TEST(AllocatorTest, StatsFollowWhatIsAllocated) {
