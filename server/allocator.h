@@ -9,7 +9,8 @@
 // capped the arenas and called malloc_trim(0). jemalloc gives unused dirty pages back to the kernel on its own after
 // dirty_decay_ms (10 s by default) and on demand (arena purge), which is what allocator_trim does from the reaper
 // after sessions close (--malloc_trim_s): faults_test's rounds end at 42-43 MB each. jemalloc's own settings come
-// from MALLOC_CONF (e.g. narenas:4); longer decays or a larger thread cache measured inside the noise.
+// from malloc_conf.cc, then MALLOC_CONF (e.g. narenas:4); longer decays or a larger thread cache measured inside the
+// noise.
 #pragma once
 
 #include <cstdint>
