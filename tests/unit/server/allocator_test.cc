@@ -20,9 +20,8 @@ TEST(AllocatorTest, JemallocServesMalloc) {
   EXPECT_EQ(version->rfind("jemalloc ", 0), 0u) << *version;
 }
 
-// The project's settings (server/malloc_conf.cc) reach jemalloc: no arena of its own for blocks of 8 MiB and more,
-// which would give their pages back as soon as they are freed (README, Speed: a server on many maps faulted them in
-// again and again).
+// The project's settings (server/malloc_conf.cc) reach jemalloc: no arena of its own for blocks of 8 MiB and more
+// (README, Speed: with it, a server on many maps faulted their pages in again and again).
 TEST(AllocatorTest, TheProjectsSettingsReachJemalloc) {
   size_t threshold = 1, size = sizeof threshold;
   ASSERT_EQ(mallctl("opt.oversize_threshold", &threshold, &size, nullptr, 0), 0);
