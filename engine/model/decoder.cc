@@ -241,13 +241,12 @@ Mat Model::decode(const MapContext& map, KvCache& cache, std::vector<DecoderToke
 
   for (int l = 0; l < c.decoder_layers; ++l) {
     const DecoderLayerParams& L = decoder_layers_[l];
-    KeyValueRows map_keys;  // floats (with halves beside them in fp16), or halves alone (MapContext)
-    if (map.cross_keys[l].size() != 0) {
-      map_keys = KeyValueRows(MatMap(map.cross_keys[l].data(), map.size(), c.d_model),
-                              MatMap(map.cross_values[l].data(), map.size(), c.d_model));
-    }
-    map_keys.rows = map.size();
-    map_keys.d = c.d_model;
+    // Floats (with halves beside them in fp16), or halves alone where the floats are not kept (MapContext).
+    KeyValueRows map_keys = map.cross_keys[l].size() != 0
+                                ? KeyValueRows(MatMap(map.cross_keys[l].data(), map.size(), c.d_model),
+                                               MatMap(map.cross_values[l].data(), map.size(), c.d_model))
+                                : KeyValueRows(map.cross_keys_h[l].data(), map.cross_values_h[l].data(), map.size(),
+                                               c.d_model);
     if (!map.cross_keys_h.empty()) {
       map_keys.kh = map.cross_keys_h[l].data();
       map_keys.vh = map.cross_values_h[l].data();
