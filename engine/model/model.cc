@@ -226,7 +226,9 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
   relu_inplace(h3);
   Mat x = linear(h3, poly_fc4_);
 
-  // Transformer layers over segments, each reading its nearest segments.
+  // Transformer layers over segments, each reading its nearest segments. The anchors (a pose with its heading's
+  // cosine and sine) are made once per segment, not once per pair.
+  for (const MapSegment& seg : map->segments) map->anchors.emplace_back(true, seg.pose, 0);
   std::vector<QueryKeys> keys(m);
   std::vector<const QueryKeys*> key_ptrs;
   for (const QueryKeys& k : keys) key_ptrs.push_back(&k);
@@ -235,7 +237,7 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
     keys[i].keys = map_keys_near(map->segments, map->index, {p.x, p.y}, limit_);
     Mat f(keys[i].keys.size(), kRelationFeatures);
     for (size_t j = 0; j < keys[i].keys.size(); ++j) {
-      const RelationFeatures rf = relation_features(Anchor(true, p, 0), Anchor(true, map->segments[keys[i].keys[j]].pose, 0));
+      const RelationFeatures rf = relation_features(map->anchors[i], map->anchors[keys[i].keys[j]]);
       for (int col = 0; col < kRelationFeatures; ++col) f(j, col) = rf[col];
     }
     keys[i].relation = relation_columns(f, encoder_relation_);
@@ -271,7 +273,6 @@ absl::StatusOr<std::shared_ptr<const MapContext>> Model::encode_map(std::vector<
     }
   }
   map->pointer_keys = linear(map->tokens, pointer_key_);
-  for (const MapSegment& seg : map->segments) map->anchors.emplace_back(true, seg.pose, 0);
   return std::shared_ptr<const MapContext>(std::move(map));
 }
 
