@@ -125,8 +125,7 @@ int main(int argc, char** argv) {
   if (!last_tick_agents.empty()) agents_mean /= static_cast<double>(last_tick_agents.size());
   if (json) {
     nlohmann::ordered_json out = {{"clients", clients}, {"steps", steps}, {"scenarios", scenarios.size()},
-                                  {"densify", densify},
-                                  {"motion_reject", motion_reject}, {"errors", errors.load()},
+                                  {"densify", densify}, {"motion_reject", motion_reject}, {"errors", errors.load()},
                                   {"steps_per_second", sps}, {"latency_ms_p50", pct(0.5)},
                                   {"latency_ms_p99", pct(0.99)}, {"agents_last_tick_mean", agents_mean}};
     if (route) out["session_ids"] = session_ids;
