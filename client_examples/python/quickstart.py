@@ -8,7 +8,7 @@ from scenestreamer import SceneStreamerEnv, cruise
 
 env = SceneStreamerEnv(sys.argv[1] if len(sys.argv) > 1 else "127.0.0.1:50051", max_steps=20)
 obs, info = env.reset(seed=0)
-print("scenario", info["scenario"], "session", info["session_id"])
+print("scenario", info["scenario"], "session", env.session_id)
 print({k: v.shape for k, v in obs.items()})
 episode_return = 0.0
 while True:

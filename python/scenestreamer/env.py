@@ -15,18 +15,30 @@ from scenestreamer.v1 import simulator_pb2 as pb
 # (acceleration m/s^2, yaw rate rad/s): hard braking to brisk acceleration, up to ~57 degrees a second.
 ACTION_LOW = np.array([-8.0, -1.0], np.float32)
 ACTION_HIGH = np.array([4.0, 1.0], np.float32)
-MODES = {"motion": pb.MODE_MOTION, "full": pb.MODE_FULL, "densify": pb.MODE_DENSIFY}
+MODES = {"motion": pb.MODE_MOTION, "full": pb.MODE_FULL, "densify": pb.MODE_DENSIFY, "log": pb.MODE_LOG,
+         "idm": pb.MODE_IDM}
 
 
-def check_action(action, where="action"):
-    """The action as a float32 (2,) array clipped to the action space; ValueError for a wrong shape or a non-finite
-    value (the server would refuse the pose anyway, with less context)."""
+def check_action(action, where="action", normalized=False):
+    """The action as a float32 (2,) array of physical units (acceleration m/s^2, yaw rate rad/s) clipped to
+    ACTION_LOW..ACTION_HIGH; ValueError for a wrong shape or a non-finite value (the server would refuse the pose
+    anyway, with less context). normalized: the action is in [-1, 1] (clipped to it), mapped linearly onto
+    ACTION_LOW..ACTION_HIGH (-1: ACTION_LOW, 1: ACTION_HIGH, 0: their midpoint, -2 m/s^2 and 0 rad/s)."""
     a = np.asarray(action, dtype=np.float64)
     if a.shape != (2,):
         raise ValueError(f"{where}: expected shape (2,) (acceleration, yaw rate), got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{where}: {a.tolist()} is not finite")
+    if normalized:
+        a = ACTION_LOW + (np.clip(a, -1.0, 1.0) + 1.0) * 0.5 * (ACTION_HIGH - ACTION_LOW)
     return np.clip(a, ACTION_LOW, ACTION_HIGH).astype(np.float32)
+
+
+def action_space(normalized):
+    """The action space: Box(ACTION_LOW, ACTION_HIGH), or Box(-1, 1) of the same shape when normalized."""
+    if normalized:
+        return Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+    return Box(ACTION_LOW, ACTION_HIGH, dtype=np.float32)
 
 
 class SceneStreamerEnv(Env):
@@ -37,14 +49,19 @@ class SceneStreamerEnv(Env):
     max_steps: episode length in 0.5 s steps (truncation); mode: "motion", "full" or "densify"; observation /
     reward: ObservationConfig / RewardConfig; channel: a grpc channel to share (the env then does not close it);
     route: send each session's id as x-session-id metadata on every call (behind a router of deploy/router/);
-    token, tls_root: a bearer token and the server's TLS root certificate (scenestreamer.client.connect).
+    token, tls_root: a bearer token and the server's TLS root certificate (scenestreamer.client.connect);
+    normalize_actions: the action space is Box(-1, 1, (2,)), mapped linearly onto the physical range
+    ACTION_LOW..ACTION_HIGH (check_action), as libraries that expect normalised actions want.
     options of reset: {"scenario": name} picks the scenario instead of drawing one.
-    The same seed gives the same scenario, the same session seed, and so the same episode for the same actions."""
+    The same seed gives the same scenario, the same session seed, and so the same episode for the same actions:
+    equal observations, rewards and infos. The server's session id differs each episode, so it is not in the infos:
+    it is env.session_id."""
 
     metadata = {"render_modes": []}
 
     def __init__(self, target="127.0.0.1:50051", scenarios=None, max_steps=80, mode="motion", observation=None,
-                 reward=None, channel=None, timeout=60.0, roads=None, route=False, token=None, tls_root=None):
+                 reward=None, channel=None, timeout=60.0, roads=None, route=False, token=None, tls_root=None,
+                 normalize_actions=False):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r}: expected one of {sorted(MODES)}")
         self._own_channel = channel is None
@@ -56,7 +73,8 @@ class SceneStreamerEnv(Env):
         self.observation_config = observation or ObservationConfig()
         self.reward_config = reward or RewardConfig()
         self.observation_space = observation_space(self.observation_config)
-        self.action_space = Box(ACTION_LOW, ACTION_HIGH, dtype=np.float32)
+        self.normalize_actions = bool(normalize_actions)
+        self.action_space = action_space(self.normalize_actions)
         self._roads = {} if roads is None else roads  # scenario name -> RoadMap: the map is fetched once per scenario
         self.session_id = None
         self.scenario = None
@@ -89,20 +107,19 @@ class SceneStreamerEnv(Env):
             raise RuntimeError(f"scenario {name!r} gave the session no controlled agent (no SDC): pick another")
         self.ego_id = controlled[0]
         self._obs = observe(self.tick, self.ego_id, self._roads[name], self.observation_config)
-        return self._obs, {"session_id": self.session_id, "scenario": name, "ego_id": self.ego_id,
-                           "sim_time": self.tick.sim_time}
+        return self._obs, {"scenario": name, "ego_id": self.ego_id, "sim_time": self.tick.sim_time}
 
-    def _step_request(self, action):
+    def _step_request(self, action, where="action"):
         if self.session_id is None:
             raise RuntimeError("step() before reset() (or after close())")
-        a = check_action(action)
+        a = check_action(action, where, self.normalize_actions)
         ego = find_agent(self.tick, self.ego_id)
         return pb.StepSceneRequest(session_id=self.session_id, poses=[advance(ego, a)])
 
     def _stepped(self, response):
         self.tick = response.ticks[-1]
         self.steps += 1
-        info = {"session_id": self.session_id, "tick": self.tick.tick, "sim_time": self.tick.sim_time,
+        info = {"tick": self.tick.tick, "sim_time": self.tick.sim_time,
                 "agents": len(self.tick.agents)}
         if find_agent(self.tick, self.ego_id) is None:  # not expected: controlled agents are never retired
             info["ego_left"] = True

@@ -2,30 +2,35 @@
 "agent_<id>"; observations, rewards, terminations, truncations and infos are dicts keyed by agent name). Background
 traffic and the other egos are part of each ego's observation. One StepScene per tick carries every ego's pose; an ego
 whose episode ended is held in place (the session still has it as a controlled agent, and its tick waits for every
-controller's pose)."""
+controller's pose).
+
+It subclasses pettingzoo.ParallelEnv where PettingZoo is installed, else a stand-in with the same attributes
+(scenestreamer.spaces), so PettingZoo's parallel_api_test and parallel_seed_test accept it. The same seed gives equal
+observations, rewards and infos; the server's session id (new each episode) is env.session_id, not in the infos."""
 import math
 
 import numpy as np
 
 from scenestreamer.client import advance, connect, hold, scenario_names
-from scenestreamer.env import ACTION_HIGH, ACTION_LOW, MODES, check_action
+from scenestreamer.env import MODES, action_space, check_action
 from scenestreamer.observation import ObservationConfig, find_agent, observation_space, observe
 from scenestreamer.reward import RewardConfig, events_of, reward_and_termination
 from scenestreamer.road import RoadMap
-from scenestreamer.spaces import Box
+from scenestreamer.spaces import ParallelEnv
 from scenestreamer.v1 import simulator_pb2 as pb
 
 
-class SceneStreamerParallelEnv:
+class SceneStreamerParallelEnv(ParallelEnv):
     """scenario: a bundled scenario name (default: the server's first); agent_ids: the track ids to control (default:
     the SDC and the num_agents - 1 vehicles nearest it at the scenario's current frame, found by a short probe
-    session at construction)."""
+    session at construction); normalize_actions: every agent's action space is Box(-1, 1, (2,)), mapped onto the
+    physical range as in SceneStreamerEnv."""
 
     metadata = {"name": "scenestreamer_parallel_v0", "render_modes": []}
 
     def __init__(self, target="127.0.0.1:50051", scenario=None, agent_ids=None, num_agents=2, max_steps=80,
                  mode="motion", observation=None, reward=None, channel=None, timeout=60.0, route=False, token=None,
-                 tls_root=None):
+                 tls_root=None, normalize_actions=False):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r}: expected one of {sorted(MODES)}")
         self._own_channel = channel is None
@@ -43,8 +48,13 @@ class SceneStreamerParallelEnv:
         self.possible_agents = [f"agent_{i}" for i in self.agent_ids]
         self._ids = dict(zip(self.possible_agents, self.agent_ids))
         self.agents = []
+        self.normalize_actions = bool(normalize_actions)
+        # One space object for all agents: observation_space(agent) is the same object at every call, as PettingZoo
+        # requires (its action-space seeding relies on it).
         self._observation_space = observation_space(self.observation_config)
-        self._action_space = Box(ACTION_LOW, ACTION_HIGH, dtype=np.float32)
+        self._action_space = action_space(self.normalize_actions)
+        self.observation_spaces = {a: self._observation_space for a in self.possible_agents}
+        self.action_spaces = {a: self._action_space for a in self.possible_agents}
         self.session_id = None
         self.tick = None
         self.steps = 0
@@ -90,7 +100,7 @@ class SceneStreamerParallelEnv:
             raise RuntimeError(f"agents {missing} are not in scenario {self.scenario!r} at its current frame")
         self.agents = list(self.possible_agents)
         return ({a: self._observe(a) for a in self.agents},
-                {a: {"session_id": self.session_id, "agent_id": self._ids[a]} for a in self.agents})
+                {a: {"agent_id": self._ids[a]} for a in self.agents})
 
     def step(self, actions):
         if self.session_id is None:
@@ -105,7 +115,7 @@ class SceneStreamerParallelEnv:
         for name in self.possible_agents:
             agent = find_agent(self.tick, self._ids[name])
             if name in actions:
-                poses.append(advance(agent, check_action(actions[name], f"actions[{name!r}]")))
+                poses.append(advance(agent, check_action(actions[name], f"actions[{name!r}]", self.normalize_actions)))
             else:
                 poses.append(hold(agent))
         r = self.stub.StepScene(pb.StepSceneRequest(session_id=self.session_id, poses=poses), timeout=self.timeout)

@@ -6,11 +6,12 @@ them, so a tick costs the slowest session's step, not the sum. Autoreset mode "s
 environment whose episode ended is reset inside the same step() call; the observation returned for it is the new
 episode's first, and the last observation and info of the ended episode are in infos["final_obs"] and
 infos["final_info"] (masks "_final_obs", "_final_info"). Ticks where episodes end take a second round trip: the
-ended sessions' CloseSession and the new sessions' CreateSession calls, also sent at once."""
+ended sessions' CloseSession and the new sessions' CreateSession calls, also sent at once. The sessions' ids are
+session_ids (not in the infos, which the same seeds make equal)."""
 import numpy as np
 
 from scenestreamer.client import connect, scenario_names
-from scenestreamer.env import SceneStreamerEnv, check_action
+from scenestreamer.env import SceneStreamerEnv
 from scenestreamer.spaces import Env, batch_space
 from scenestreamer.v1 import simulator_pb2 as pb
 
@@ -53,6 +54,11 @@ class SceneStreamerVectorEnv:
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.timeout = self.envs[0].timeout
+
+    @property
+    def session_ids(self):
+        """The server session id of each env (None before reset and after close)."""
+        return [e.session_id for e in self.envs]
 
     def _restart(self, indices, options=None):
         """Closes the sessions of envs `indices` and starts new ones, all calls in flight at once."""
@@ -109,8 +115,7 @@ class SceneStreamerVectorEnv:
         actions = np.asarray(actions)
         if actions.shape != (self.num_envs, 2):
             raise ValueError(f"actions: expected shape ({self.num_envs}, 2), got {actions.shape}")
-        requests = [e._step_request(check_action(a, f"actions[{i}]")) for i, (e, a) in
-                    enumerate(zip(self.envs, actions))]
+        requests = [e._step_request(a, f"actions[{i}]") for i, (e, a) in enumerate(zip(self.envs, actions))]
         futures = [self.stub.StepScene.future(r, timeout=self.timeout) for r in requests]
         results = [e._stepped(f.result()) for e, f in zip(self.envs, futures)]
         obs = [r[0] for r in results]

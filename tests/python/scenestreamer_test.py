@@ -1,16 +1,19 @@
-"""The Python package's own logic, without a server: the stand-in spaces, the ego-frame observation, the road arrays,
-the kinematics of an action, and reward/termination from events."""
+"""The Python package's own logic, without a server: the stand-in spaces and base classes (gymnasium's Env and
+ObservationWrapper, PettingZoo's ParallelEnv), the normalised actions, the flat observation, the ego-frame
+observation, the road arrays, the kinematics of an action, and reward/termination from events."""
 import math
 import unittest
 
 import numpy as np
 
-from scenestreamer import RewardConfig
+from scenestreamer import FlatObservation, RewardConfig
 from scenestreamer.client import advance, scenario_names
+from scenestreamer.env import ACTION_HIGH, ACTION_LOW, action_space, check_action
 from scenestreamer.observation import ObservationConfig, observation_space, observe
 from scenestreamer.reward import reward_and_termination
 from scenestreamer.road import RoadMap
-from scenestreamer.spaces import HAVE_GYMNASIUM, Box, Dict, batch_space
+from scenestreamer.spaces import (HAVE_GYMNASIUM, HAVE_PETTINGZOO, Box, Dict, Env, ParallelEnv, batch_space,
+                                  flat_box, flatten)
 from scenestreamer.v1 import simulator_pb2 as pb
 
 
@@ -40,6 +43,132 @@ class SpacesTest(unittest.TestCase):
     @unittest.skipIf(HAVE_GYMNASIUM, "the stand-ins are used only without gymnasium")
     def test_stand_ins_in_use(self):
         self.assertEqual(Box.__module__, "scenestreamer.spaces")
+
+
+class ParallelEnvStandInTest(unittest.TestCase):
+    """What PettingZoo's ParallelEnv gives a subclass and parallel_api_test reads, on the stand-in."""
+
+    @unittest.skipIf(HAVE_PETTINGZOO, "the stand-in is used only without pettingzoo")
+    def test_attributes(self):
+        space = Box(-1.0, 1.0, shape=(2,))
+
+        class Two(ParallelEnv):
+            metadata = {"name": "two_v0"}
+
+            def __init__(self):
+                self.possible_agents = ["a", "b"]
+                self.agents = ["a"]
+                self.observation_spaces = {"a": space, "b": space}
+                self.action_spaces = {"a": space, "b": space}
+
+        env = Two()
+        self.assertIs(env.unwrapped, env)
+        self.assertEqual((env.num_agents, env.max_num_agents), (1, 2))
+        self.assertIs(env.observation_space("b"), space)
+        self.assertIs(env.action_space("a"), env.action_space("a"))
+        self.assertEqual(str(env), "two_v0")
+        with self.assertRaisesRegex(NotImplementedError, "two_v0"):
+            env.state()
+        with self.assertRaises(NotImplementedError):
+            env.reset(seed=0, options={})
+        env.close()
+        self.assertEqual(ParallelEnv.__module__, "scenestreamer.spaces")
+
+
+def _dict_space():
+    return Dict({"ego": Box(np.array([-1, 0], np.float32), np.array([1, 5], np.float32)),
+                 "points": Box(-2.0, 2.0, shape=(3, 2)), "mask": Box(0.0, 1.0, shape=(3,))})
+
+
+class NormalisedActionTest(unittest.TestCase):
+    def test_maps_minus_one_one_onto_the_physical_range(self):
+        np.testing.assert_array_equal(check_action([-1, -1], normalized=True), ACTION_LOW)
+        np.testing.assert_array_equal(check_action([1, 1], normalized=True), ACTION_HIGH)
+        np.testing.assert_allclose(check_action([0, 0], normalized=True), (ACTION_LOW + ACTION_HIGH) / 2)
+        np.testing.assert_allclose(check_action([0.5, -0.5], normalized=True), [1.0, -0.5])
+        # Outside [-1, 1]: clipped to it, so to the physical bounds.
+        np.testing.assert_array_equal(check_action([7, -3], normalized=True), [ACTION_HIGH[0], ACTION_LOW[1]])
+        self.assertEqual(check_action([0, 0], normalized=True).dtype, np.float32)
+        # Physical units unchanged without the option.
+        np.testing.assert_array_equal(check_action([-2, 0.5]), [-2, 0.5])
+
+    def test_bad_actions_are_refused_either_way(self):
+        for normalized in (False, True):
+            with self.assertRaisesRegex(ValueError, r"expected shape \(2,\)"):
+                check_action([0, 0, 0], normalized=normalized)
+            with self.assertRaisesRegex(ValueError, "not finite"):
+                check_action([np.inf, 0], "actions[1]", normalized=normalized)
+
+    def test_spaces(self):
+        n = action_space(True)
+        np.testing.assert_array_equal(n.low, [-1, -1])
+        np.testing.assert_array_equal(n.high, [1, 1])
+        self.assertEqual((n.shape, n.dtype), ((2,), np.float32))
+        p = action_space(False)
+        np.testing.assert_array_equal(p.low, ACTION_LOW)
+        np.testing.assert_array_equal(p.high, ACTION_HIGH)
+
+
+class FlatObservationTest(unittest.TestCase):
+    def test_flat_box_and_flatten(self):
+        space = _dict_space()
+        flat = flat_box(space)
+        self.assertEqual((flat.shape, flat.dtype), ((2 + 6 + 3,), np.float32))
+        np.testing.assert_array_equal(flat.low, [-1, 0] + [-2] * 6 + [0] * 3)
+        np.testing.assert_array_equal(flat.high, [1, 5] + [2] * 6 + [1] * 3)
+        obs = {"ego": np.array([0.5, 4], np.float32), "points": np.arange(6, dtype=np.float32).reshape(3, 2) / 4,
+               "mask": np.array([1, 1, 0], np.float32)}
+        v = flatten(space, obs)
+        np.testing.assert_array_equal(v, [0.5, 4, 0, 0.25, 0.5, 0.75, 1, 1.25, 1, 1, 0])
+        self.assertTrue(flat.contains(v))
+        batched = {k: np.stack([a, a]) for k, a in obs.items()}
+        np.testing.assert_array_equal(flatten(space, batched, batch_dims=1), np.stack([v, v]))
+
+    def test_flatten_refuses_another_layout(self):
+        space = _dict_space()
+        obs = space.sample()
+        with self.assertRaisesRegex(ValueError, r"observation\['points'\]: expected shape \(3, 2\)"):
+            flatten(space, dict(obs, points=np.zeros((2, 3), np.float32)))
+        with self.assertRaisesRegex(ValueError, "expected a dict of"):
+            flatten(space, {"ego": obs["ego"]})
+        with self.assertRaisesRegex(ValueError, "expected a dict of"):
+            flatten(space, np.zeros(11, np.float32))
+
+    def test_wrapper(self):
+        space = _dict_space()
+
+        class Fake(Env):
+            observation_space = space
+            action_space = Box(-1.0, 1.0, shape=(2,))
+            session_id = "s-1"
+
+            def reset(self, *, seed=None, options=None):
+                super().reset(seed=seed)
+                return space.sample(), {"scenario": "x"}
+
+            def step(self, action):
+                return space.sample(), 1.5, False, True, {"tick": 1}
+
+        inner = Fake()
+        env = FlatObservation(inner)
+        self.assertIs(env.unwrapped, inner)
+        self.assertEqual(env.unwrapped.session_id, "s-1")
+        self.assertIs(env.action_space, inner.action_space)
+        self.assertEqual(env.observation_space.shape, (11,))
+        obs, info = env.reset(seed=3)
+        self.assertEqual(info, {"scenario": "x"})
+        self.assertEqual(obs.shape, (11,))
+        self.assertTrue(env.observation_space.contains(obs))
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        self.assertTrue(env.observation_space.contains(obs))
+        self.assertEqual((reward, terminated, truncated, info), (1.5, False, True, {"tick": 1}))
+        self.assertEqual(env.layout(), [("ego", 0, 2), ("points", 2, 8), ("mask", 8, 11)])
+
+        class NotDict(Fake):
+            observation_space = Box(0.0, 1.0, shape=(3,))
+
+        with self.assertRaisesRegex(TypeError, "not a Dict of Box"):
+            FlatObservation(NotDict())
 
 
 class ObservationTest(unittest.TestCase):
