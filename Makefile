@@ -70,7 +70,7 @@ soak: build
 # (models/train-checkpoint.pt) instead, to continue the run the committed model came from: raise TRAIN_STEPS past the
 # checkpoint's step (the committed checkpoint is step 3,500, with TRAIN_AGENTS=64). The committed run used these
 # flags with 1,550 steps from step 788 to 1,550, then 2,500 (a warm restart), then from 2,500 with 64 agents and
-# 4,000 and 3,500 steps, to the end at 3,500; its first 788 steps ran under longer schedules (models/MODEL_CARD.md). From scratch, these defaults make a model close to step 2,500's.
+# 4,000 and 3,500 steps, to the end at 3,500; its first 788 steps ran under longer schedules (docs/model.md). From scratch, these defaults make a model close to step 2,500's.
 WOMD       ?= ../shared/data/womd
 TRAIN_DIR  ?= $(HOME)/.cache/scenestreamer/train-default
 TRAIN_STEPS  ?= 2500

@@ -2,7 +2,7 @@
 # Server throughput, A/B: each round runs every server given, in turn, on one loopback port, under the same load
 # (build/client_examples/scenestreamer-load), and prints one JSON line per run: the load generator's figures plus the
 # label, the round and the server's peak RSS. Interleaving the builds round by round is what makes their ratio
-# meaningful on a machine whose load drifts (README, Speed).
+# meaningful on a machine whose load drifts (docs/performance.md).
 #
 #   bench/server_ab.sh [-r ROUNDS] [-c CLIENTS] [-s STEPS] [-d DENSIFY] LABEL=SERVER_BINARY[:ENV=VALUE] ...
 #
@@ -10,7 +10,7 @@
 # An ENV=VALUE after a colon is set for that server only (LD_PRELOAD=..., SCENESTREAMER_KV_PRECISION=fp32), except
 # LOAD_FLAGS=..., which the load generator gets for that run (LOAD_FLAGS=--no-motion-reject: sessions without reject
 # sampling; one server binary can then be compared with itself).
-# Every server runs with --threads 2, the trained default model and the real val scenarios, as in the README.
+# Every server runs with --threads 2, the trained default model and the real val scenarios, as in docs/performance.md.
 set -eu
 
 ROUNDS=4 CLIENTS=32 STEPS=30 DENSIFY=64

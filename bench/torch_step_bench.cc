@@ -1,6 +1,6 @@
 // The engine against the same model in libtorch (the trainer's model stepped incrementally over its own cache), at
 // 64 agents and 16 lights on the real scenario, one thread each, in one run: the decoder batches of step 19 over a
-// cache of the steps before. Run: build/bench/torch_step_bench; the ratio of the two times is the README's figure.
+// cache of the steps before. Run: build/bench/torch_step_bench; the ratio of the two times is docs/performance.md's figure.
 #include <benchmark/benchmark.h>
 
 #include <cstdio>

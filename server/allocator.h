@@ -1,9 +1,9 @@
 // The server's allocator: jemalloc (Debian's libjemalloc2), linked into the server in place of glibc's malloc, and
-// the server's resident memory (issues 13 and 16; README, Faults and Speed).
+// the server's resident memory (docs/performance.md, "Memory of a server").
 //
 // Why jemalloc: the server's ticks allocate and free many short-lived buffers on gRPC's handler threads, and glibc's
 // malloc was 11 % of the server's profile on an AVX2 machine, where the same binary with jemalloc preloaded served
-// 1.22x the steps/s (README, Speed; jemalloc is below 1 % of the profile). Why not glibc's arenas as before: each thread that allocates gets one of up to 8 x cores glibc arenas, a
+// 1.22x the steps/s (docs/performance.md; jemalloc is below 1 % of the profile). Why not glibc's arenas as before: each thread that allocates gets one of up to 8 x cores glibc arenas, a
 // freed block goes back to its arena, which keeps the pages, so RSS stepped up from round to round of identical load
 // while the bytes in use did not (tests/integration/memory_rounds.py: 301 -> 471 MB over 8 rounds); the server then
 // capped the arenas and called malloc_trim(0). jemalloc gives unused dirty pages back to the kernel on its own after

@@ -7,7 +7,7 @@
 // tens of MiB of such matrices (the PointNet over a map's ~20,000 vectors), and a server that opens sessions on many
 // maps faulted their pages in again and again (12 us a page on this VM). With 32 sessions on 32 maps
 // (`scenestreamer-load --scenarios 32 --densify 64`) this setting cut the server's page faults from 337-356k to
-// 175-277k and raised steps/s from 71-78 to 83-88 (four interleaved rounds, README Speed); on one map it changed
+// 175-277k and raised steps/s from 71-78 to 83-88 (four interleaved rounds, docs/performance.md); on one map it changed
 // nothing (0.98x, five rounds).
 extern "C" {
 const char* malloc_conf = "oversize_threshold:0";

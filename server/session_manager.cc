@@ -833,7 +833,7 @@ void SessionManager::reaper() {
   auto last_trim = Clock::now();
   while (!stop_) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    // Give what closed sessions freed back to the kernel now (README, Faults; server/allocator.h), rather than when
+    // Give what closed sessions freed back to the kernel now (docs/performance.md; server/allocator.h), rather than when
     // jemalloc's decay gets to it: an idle arena's dirty pages decay only when it allocates again.
     if (options_.malloc_trim_interval_s > 0 && closed_since_trim_ > 0 &&
         Clock::now() - last_trim >= std::chrono::duration<double>(options_.malloc_trim_interval_s)) {

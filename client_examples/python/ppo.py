@@ -12,7 +12,7 @@ model, which drives every other agent and the lights and reacts to the ego.
         --minutes 38 --out docs/ppo
 
 --quick: one tiny PPO iteration (2 environments x 8 steps) and a 2-episode evaluation of each policy, for the test
-(tests/integration/ppo_example_test.py). Needs the scenestreamer package (README, "RL clients") and Debian's
+(tests/integration/ppo_example_test.py). Needs the scenestreamer package (docs/rl.md) and Debian's
 python3-torch.
 
 Writes to --out: log.jsonl (one line per iteration), eval.json (the comparison), curves.svg (return and event rates

@@ -1,4 +1,4 @@
-"""The README's quick start: one episode of one environment, the ego driven by the cruise policy.
+"""The quick start (README, docs/rl.md): one episode of one environment, the ego driven by the cruise policy.
 
     python client_examples/python/quickstart.py 127.0.0.1:50051
 """

@@ -3,7 +3,7 @@ flight at once), each ego driven by the cruise policy, and prints what each epis
 
     /usr/bin/python3 client_examples/python/run_parallel_envs.py --target 127.0.0.1:50051 --envs 8 --steps 20
 
-Needs the scenestreamer package: `pip install ./python` (README, "RL clients"), or PYTHONPATH=build/python.
+Needs the scenestreamer package: `pip install ./python` (docs/rl.md), or PYTHONPATH=build/python.
 """
 import argparse
 import time

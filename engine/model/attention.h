@@ -1,4 +1,4 @@
-// Sparse relative attention (paper appendix C.3, folded as DESIGN.md difference 1):
+// Sparse relative attention (paper appendix C.3, folded as docs/design.md section 7, relative attention):
 //   score_ij = (q_i . k_j + q'_i . r_ij) / sqrt(head_dim),  r_ij = W_rk h_ij + b_rk,
 //   out_i    = sum_j a_ij (v_j + W_rv h_ij + b_rv),
 // with h_ij = relu(fc2(relu(fc1(f_ij)))) a relation embedding shared by all layers of one attention kind.

@@ -122,7 +122,7 @@ struct SpecList {
     add(name + ".weight", {d}, Init::ones);
     add(name + ".bias", {d}, Init::zeros);
   }
-  // Relative attention (DESIGN.md difference 1): content query/key/value/output, a relation query, and the per-layer
+  // Relative attention (docs/design.md section 7): content query/key/value/output, a relation query, and the per-layer
   // linear maps of the shared relation features h_ij into keys and values.
   void relative_attention(const std::string& name, int64_t d, int64_t r) {
     for (const char* p : {"query", "key", "value", "output", "rel_query"}) linear(name + "." + p, d, d);
@@ -169,7 +169,7 @@ std::vector<TensorSpec> model_parameter_specs(const ModelConfig& c) {
   s.layer_norm("encoder.final_norm", d);
   s.add("encoder.map_id_embedding", {c.max_map_segments, d});
 
-  // Dynamic-token embeddings (summed per token; DESIGN.md section 4).
+  // Dynamic-token embeddings (summed per token; docs/design.md section 5).
   s.add("embed.agent_type", {kAgentTypes, d});
   s.add("embed.agent_slot", {c.agent_slots, d});
   s.add("embed.light_slot", {c.light_slots, d});

@@ -19,7 +19,7 @@ struct ModelConfig {
   int decoder_layers = 4;
   int ffn_mult = 4;            // feed-forward width = ffn_mult * d_model
   int polyline_dim = 64;       // PointNet width
-  int relation_dim = 32;       // width of the relation MLP h_ij (folded into queries, DESIGN.md difference 1)
+  int relation_dim = 32;       // width of the relation MLP h_ij (folded into queries, docs/design.md section 7)
   int rs_layers = 3;           // relative-state head: AdaLN transformer blocks
   int max_map_segments = 3000; // map-id embedding slots
   int agent_slots = 128;       // agent-id embedding slots, recycled after an agent retires

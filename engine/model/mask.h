@@ -1,4 +1,4 @@
-// Token group attention (DESIGN.md section 4) and the nearest-neighbour limit on spatial keys.
+// Token group attention (docs/design.md section 5) and the nearest-neighbour limit on spatial keys.
 #pragma once
 
 #include <span>

@@ -209,7 +209,7 @@ __attribute__((target("avx512f,avx512bf16"))) inline void avx512_block(const uin
 
 // Every row of y for one block of C column tiles: blocks of 16 / C rows, so that a narrow block still has 16
 // independent sums in flight (4 rows of a narrow block, 4-8 sums, were too few to cover the instruction's latency:
-// README, Speed), then blocks of 4, then the rest.
+// docs/performance.md), then blocks of 4, then the rest.
 template <int C>
 void avx512_columns(const uint16_t* a, size_t depth, int rows, const uint16_t* b, size_t tile_stride, int pairs,
                     float* y, int out, int cols) {

@@ -1,5 +1,5 @@
 // Dense products in bf16: y = x W^T with x and W rounded to bf16 (round to nearest even) and every sum in fp32. For
-// the model's Linear layers when ModelOptions::matmul_precision is bf16 (README: Speed). Two kernels read the same
+// the model's Linear layers when ModelOptions::matmul_precision is bf16 (docs/performance.md). Two kernels read the same
 // packed weights: Intel AMX tiles, and AVX512-BF16's `vdpbf16ps` where the CPU has no AMX (AMD Zen 4 and 5). They
 // sum each output's pairs in another order, so their bits differ in the last place; each is deterministic. The
 // kernels alone are compiled for their instructions (function target attributes, not file flags: a template

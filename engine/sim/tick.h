@@ -1,7 +1,7 @@
 // Ticks faster than the model's 2 Hz steps (10 Hz clients). The model still reacts at 2 Hz, as trained, but the
 // (acceleration, yaw rate) control each background agent sampled at the last step boundary already fixes where the
 // next step puts it, so tick k of n between two steps shows that control integrated over t = 0.5 k / n seconds with
-// the step's own kinematic rule (DESIGN.md section 4) evaluated at dt = t: speed v + a t, heading psi + w t, position
+// the step's own kinematic rule (docs/design.md section 5) evaluated at dt = t: speed v + a t, heading psi + w t, position
 // advanced by the mean of the old and new speed along the mean of the old and new heading. At k = n this is exactly
 // the next step's pose, so background agents move every tick along the path the step then takes, without a jump.
 // (Chaining n updates of 0.1 s instead would bend towards an arc and miss the step's single-chord end point by about

@@ -1,5 +1,5 @@
 """`pip install` of the package (python/) into a fresh virtual environment that sees Debian's site packages, offline,
-then the README's quick start (client_examples/python/quickstart.py) run by that environment's interpreter against the
+then the quick start (client_examples/python/quickstart.py) run by that environment's interpreter against the
 real server. The package is copied with proto/ to a temporary directory first, so the build leaves nothing in the
 repository."""
 import os

@@ -93,7 +93,7 @@ class SlotsTest(unittest.TestCase):
 
 class SharedComputeTest(unittest.TestCase):
     def test_a_session_ticks_the_same_alone_and_beside_others(self):
-        # The server does not batch sessions (README, Speed: measured and dropped); its shared path is this one: many
+        # The server does not batch sessions (docs/performance.md: measured and dropped); its shared path is this one: many
         # sessions' calls queued on two compute threads, a long call handing its thread over between ticks, a step's
         # own worker (--step_threads 2) taken only when free. None of it may change a session's ticks: the same
         # request gives the same ticks alone, beside seven other busy sessions, and in calls of any length.

@@ -2,7 +2,7 @@
 """How predictable is the number of agents in a scenario's region from the map alone?
 
 Why: full mode's goal asks each val scenario's generated agent count to land within 30 % of the log's; this measures
-how far any predictor that sees only the map can get (models/MODEL_CARD.md, "The count per scenario").
+how far any predictor that sees only the map can get (docs/model.md, "How far the map alone predicts the count").
 
 Data: ../shared/data/womd/json/{train,val} (GPUDrive/Nocturne JSON, 91 frames, current frame 10).
 Count (mirrors engine/eval/placed_agents.cc log_placed_agents + engine/map/focus.cc):

@@ -100,7 +100,7 @@ TEST(Weights, ParameterCounts) {
     std::printf("config %s: %zu tensors, %lld parameters, file %zu bytes\n", name, specs.size(),
                 static_cast<long long>(w.parameter_count()), serialize_weights(w).size());
     if (std::string(name) == "large") {
-      // The paper's full-large model has 4.6 M parameters; ours differs a little (DESIGN.md).
+      // The paper's full-large model has 4.6 M parameters; ours differs a little (docs/design.md section 5).
       EXPECT_GE(w.parameter_count(), 3'000'000);
       EXPECT_LE(w.parameter_count(), 7'000'000);
     }

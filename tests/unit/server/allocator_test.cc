@@ -21,7 +21,7 @@ TEST(AllocatorTest, JemallocServesMalloc) {
 }
 
 // The project's settings (server/malloc_conf.cc) reach jemalloc: no arena of its own for blocks of 8 MiB and more
-// (README, Speed: with it, a server on many maps faulted their pages in again and again).
+// (docs/performance.md: with it, a server on many maps faulted their pages in again and again).
 TEST(AllocatorTest, TheProjectsSettingsReachJemalloc) {
   size_t threshold = 1, size = sizeof threshold;
   ASSERT_EQ(mallctl("opt.oversize_threshold", &threshold, &size, nullptr, 0), 0);

@@ -42,7 +42,7 @@ Scenario real_scenario() {
   return std::move((*s)[0]);
 }
 
-// Prints each comparison's largest difference (the README quotes them).
+// Prints each comparison's largest difference (docs/training.md quotes them).
 float report(const char* what, float d) {
   std::printf("  max |engine - torch| %-28s %.2e\n", what, d);
   return d;
