@@ -226,7 +226,7 @@ class FaultsTest(ServerTestCase):
     def test_a_deadline_that_passes_mid_call_stops_the_work(self):
         sid = self.create()
         # A quarter of a second: the 1000 ticks (the most a call may ask for) take about 1.0 s on a Zen 5 core with
-        # this random model, whose scene soon holds one agent, so a 1 s deadline was sometimes met (CI, 2026-11-29).
+        # this random model, whose scene soon holds one agent, so a 1 s deadline would sometimes be met.
         code, msg = error_of(self.server.stub.StepScene, pb.StepSceneRequest(session_id=sid, num_ticks=1000),
                              timeout=0.25)
         self.assertEqual(code, C.DEADLINE_EXCEEDED)
