@@ -7,7 +7,7 @@ how far any predictor that sees only the map can get (docs/model.md, "How far th
 Data: ../shared/data/womd/json/{train,val} (GPUDrive/Nocturne JSON, 91 frames, current frame 10).
 Count (mirrors engine/eval/placed_agents.cc log_placed_agents + engine/map/focus.cc):
   at frame 10, tracks of type vehicle/pedestrian/cyclist, valid, within 100 m of the centre.
-  centre = SDC (metadata.sdc_track_index) position at frame 10; files without metadata (52 of 227) have no SDC,
+  centre = SDC (metadata.sdc_track_index) position at frame 10; files without metadata have no SDC,
   and the project then uses scenario_focus(): mean position of every track valid at frame 10.
   The SDC itself is counted (as log_placed_agents does with with_sdc=true, i.e. under the default --sdc model).
 Map features: everything within R=100 m of the centre (segments by midpoint, polygons by centroid).
@@ -246,8 +246,11 @@ def main():
     L = []
     p = L.append
     p("# Predicting the number of agents in the 100 m region from the map alone\n")
-    p("Data: /work/shared/data/womd/json train (186) / val (41). Count = vehicles+pedestrians+cyclists valid at "
-      "frame 10 within 100 m of the SDC at frame 10 (SDC included). 52 files (43 train, 9 val) carry no "
+    n_tr_nosdc = sum(not r["has_sdc"] for r in tr)
+    n_va_nosdc = sum(not r["has_sdc"] for r in va)
+    p(f"Data: {DATA} train ({len(tr)}) / val ({len(va)}). Count = vehicles+pedestrians+cyclists valid at "
+      f"frame 10 within 100 m of the SDC at frame 10 (SDC included). {n_tr_nosdc + n_va_nosdc} files ({n_tr_nosdc} train, "
+      f"{n_va_nosdc} val) carry no "
       "`metadata.sdc_track_index`; for them the centre is the project's `scenario_focus` fallback (mean of all "
       "tracks valid at frame 10). Hit = |pred - count| <= 0.3 * count, predictions rounded to an integer.\n")
     p("## 1. Count distribution\n")
@@ -265,12 +268,12 @@ def main():
     tr_hits = np.array([hits(np.full(len(ytr), c), ytr) for c in cands])
     cbest = int(cands[tr_hits.argmax()])
     va_hits_all = np.array([hits(np.full(len(yva), c), yva) for c in cands])
-    p(f"- train median c={med:g}: val hits {hits(np.full(len(yva), round(med)), yva)}/41 "
-      f"(train {hits(np.full(len(ytr), round(med)), ytr)}/186)")
-    p(f"- c maximising train hits c={cbest} (train {tr_hits.max()}/186): val hits "
-      f"{hits(np.full(len(yva), cbest), yva)}/41")
+    p(f"- train median c={med:g}: val hits {hits(np.full(len(yva), round(med)), yva)}/{len(yva)} "
+      f"(train {hits(np.full(len(ytr), round(med)), ytr)}/{len(ytr)})")
+    p(f"- c maximising train hits c={cbest} (train {tr_hits.max()}/{len(ytr)}): val hits "
+      f"{hits(np.full(len(yva), cbest), yva)}/{len(yva)}")
     p(f"- (ceiling, not a fair baseline) best constant chosen on val: c={int(cands[va_hits_all.argmax()])}, "
-      f"{va_hits_all.max()}/41\n")
+      f"{va_hits_all.max()}/{len(yva)}\n")
 
     p("## 3. Map features -> log count\n")
     Xtr, Xva = design(tr), design(va)
@@ -292,7 +295,8 @@ def main():
     # a one-feature model for reference
     one = FEATURES.index("lane_km")
     models.append(("OLS lane_km only", lambda a, b, c: ridge_fit_predict(a[:, [one]], b, c[:, [one]], 0.0)[0]))
-    p("| model | val r (pred vs log count) | val R^2 (log) | val hits /41 | train-LOO r | train-LOO hits /186 |")
+    p(f"| model | val r (pred vs log count) | val R^2 (log) | val hits /{len(yva)} | train-LOO r | "
+      f"train-LOO hits /{len(ytr)} |")
     p("|---|---|---|---|---|---|")
     for name, fn in models:
         pv = fn(Xtr, ltr, Xva)
@@ -308,22 +312,22 @@ def main():
     p(f"\nResidual spread: std of log count on val = {lva.std():.2f} (a factor of {math.exp(lva.std()):.2f}); "
       f"a 30 % window is log(1.3)={math.log(1.3):.2f} up / log(0.7)={math.log(0.7):.2f} down.\n")
 
-    p("Noise: with 41 val scenarios one hit is 2.4 %; at a 30 % hit rate the binomial s.e. is about +-3 hits, so "
-      "val differences of a few hits between models are not meaningful; the train leave-one-out column (186) is the "
-      "steadier comparison (constant c=24 scores 55/186 in-sample on train).\n")
+    p(f"Noise: with {len(yva)} val scenarios one hit is {100 / len(yva):.1f} %; at a 30 % hit rate the binomial s.e. is "
+      f"about +-{math.sqrt(0.3 * 0.7 * len(yva)):.0f} hits, so val differences of a few hits between models are not "
+      f"meaningful; the train leave-one-out column ({len(ytr)}) is the steadier comparison.\n")
     p("## 4. Within-log variation of the count (val)\n")
     later = [r["later_frame"] for r in va]
     mov = np.array([r["count_later_moving"] for r in va], float)
     fix = np.array([r["count_later_fixed"] for r in va], float)
-    p(f"Later frame = 90 for {sum(f == 90 for f in later)}/41 (else the centre's last valid frame: "
+    p(f"Later frame = 90 for {sum(f == 90 for f in later)}/{len(va)} (else the centre's last valid frame: "
       f"{sorted(f for f in later if f != 90)}).")
-    p(f"- region re-centred on the SDC at the later frame: {hits(mov, yva)}/41 within 30 % of the frame-10 count; "
+    p(f"- region re-centred on the SDC at the later frame: {hits(mov, yva)}/{len(yva)} within 30 % of the frame-10 count; "
       f"median |ratio-1| {np.median(np.abs(mov / yva - 1)):.2f}; r(log) {np.corrcoef(np.log(np.maximum(mov, 1)), lva)[0, 1]:+.2f}")
-    p(f"- same region as frame 10: {hits(fix, yva)}/41 within 30 %; median |ratio-1| "
+    p(f"- same region as frame 10: {hits(fix, yva)}/{len(yva)} within 30 %; median |ratio-1| "
       f"{np.median(np.abs(fix / yva - 1)):.2f}; r(log) {np.corrcoef(np.log(np.maximum(fix, 1)), lva)[0, 1]:+.2f}")
     trm = np.array([r["count_later_moving"] for r in tr], float)
     trf = np.array([r["count_later_fixed"] for r in tr], float)
-    p(f"- (train, for more samples) re-centred {hits(trm, ytr)}/186, fixed region {hits(trf, ytr)}/186\n")
+    p(f"- (train, for more samples) re-centred {hits(trm, ytr)}/{len(ytr)}, fixed region {hits(trf, ytr)}/{len(ytr)}\n")
     p("| val file | SDC | count@10 | later frame | count re-centred | count fixed region |")
     p("|---|---|---|---|---|---|")
     for r in va:
