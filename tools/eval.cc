@@ -45,6 +45,11 @@ ABSL_FLAG(int, threads, 0, "worker threads, 1..1024; 0: the hardware's");
 ABSL_FLAG(std::string, compare, "",
           "A.json (B.json follows): each metric's difference B - A of two --json results of the same scenarios and "
           "--sdc rule, with a 95 % paired bootstrap interval over scenarios");
+ABSL_FLAG(std::string, ego, "",
+          "the closed-loop ego benchmark: the SDC driven in the loop by log (its logged poses), slow / fast (its "
+          "logged path at 0.6x / 1.3x the logged speed profile) or cruise (the Python package's cruise rule), pushed "
+          "at every tick as a client pushes it; reports ego collisions by who ran into whom, off road and background "
+          "collisions (docs/closed-loop.md); implies --sdc log");
 ABSL_FLAG(int, bootstrap, ss::BootstrapOptions{}.resamples, "bootstrap resamples of --compare, 100..1000000");
 ABSL_FLAG(std::string, submission, "",
           "score the rollouts of this submission (ours, or any model's) instead of running a policy: its scenarios "
@@ -56,8 +61,9 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --json OUT.json\n"
-    "                          ([--model WEIGHTS] [--mode motion|full] | --baseline cv|log)\n"
-    "                          [--sdc model|log] [--rollouts K] [--seed S] [--plots DIR] [--threads N]\n"
+    "                          ([--model WEIGHTS] [--mode motion|full|log|idm] | --baseline cv|log)\n"
+    "                          [--sdc model|log | --ego log|slow|fast|cruise] [--rollouts K] [--seed S]\n"
+    "                          [--plots DIR] [--threads N]\n"
     "                          [--top-p P] [--temperature T] [--motion-reject=false]\n"
     "                          [--wosac-submission DIR [--submission-metadata FILE.json]]\n"
     "       scenestreamer eval --data FILE_OR_DIR [FILE_OR_DIR...] --submission FILE_OR_DIR --json OUT.json\n"
@@ -69,6 +75,9 @@ constexpr const char* kUsage =
     "  ADD/FDD diversity) and, in full mode, the initial-state MMD. Scenarios run in parallel; results do not depend\n"
     "  on the thread count (each rollout's seed comes from S, the scenario id and the rollout index).\n"
     "  --sdc model (WOSAC's rule) evaluates the SDC too; --sdc log leaves it out of the evaluated objects.\n"
+    "  --mode log|idm: the rule baselines as sessions (log replay, non-reactive; IDM along the logged paths).\n"
+    "  --ego P: the closed-loop ego benchmark (docs/closed-loop.md): the SDC driven by policy P in the loop, the ego's\n"
+    "  collisions by who ran into whom, off road, and collisions among the others, beside the realism of the others.\n"
     "  --wosac-submission DIR: motion mode or --baseline cv, --sdc model; 32 scenarios per shard. The rollouts are\n"
     "  scored as the files hold them (float32), so scoring the files gives the same numbers. A scenario that ends at\n"
     "  its current frame (the challenge's test set) is rolled out for 80 frames and written, not scored.\n"
@@ -165,9 +174,20 @@ int eval_main(int argc, char** argv) {
   if (sdc == "model") options.sdc = SdcRule::model;
   else if (sdc == "log") options.sdc = SdcRule::log;
   else return fail("--sdc '" + sdc + "' is not model or log");
-  if (mode == "motion") options.session.mode = SessionMode::motion;
-  else if (mode == "full") options.session.mode = SessionMode::full;
-  else return fail("--mode '" + mode + "' is not motion or full");
+  if (auto m = session_mode_from_name(mode); m && *m != SessionMode::densify) options.session.mode = *m;
+  else return fail("--mode '" + mode + "' is not motion, full, log or idm");
+  if (line.has(FLAGS_ego)) {
+    const std::string e = absl::GetFlag(FLAGS_ego);
+    options.ego = ego_policy_from_name(e);
+    if (!options.ego) return fail("--ego '" + e + "' is not log, slow, fast or cruise");
+    if (options.policy != EvalPolicy::model)
+      return fail("--ego drives the SDC through a session: the model or a rule mode (--mode log|idm), not --baseline or --submission");
+    if (line.has(FLAGS_sdc) && sdc != "log") return fail("--ego drives the SDC itself: --sdc " + sdc + " does not apply");
+    if (write_submission) return fail("--ego: a WOSAC submission drives the SDC by the policy (--sdc model)");
+    options.sdc = SdcRule::log;
+  } else if (options.session.mode == SessionMode::log || options.session.mode == SessionMode::idm) {
+    if (write_submission) return fail("--wosac-submission: --mode " + mode + " is a baseline that reads the logged future");
+  }
   options.rollouts = absl::GetFlag(FLAGS_rollouts);
   options.session.seed = absl::GetFlag(FLAGS_seed);
   options.session.top_p = absl::GetFlag(FLAGS_top_p);
@@ -314,6 +334,7 @@ int eval_main(int argc, char** argv) {
   run.seed = options.session.seed;
   run.top_p = options.session.top_p, run.temperature = options.session.temperature;
   run.motion_reject = options.session.motion_reject;
+  run.ego = options.ego;
   const std::string json = json_text(eval_json(run, d, evaluations)) + "\n";
   const std::string out = absl::GetFlag(FLAGS_eval_json);
   if (out == "-") {

@@ -1,4 +1,4 @@
-// scenestreamer simulate --scenario FILE --model W --mode motion|full|densify --sdc model|log --steps N --seed S
+// scenestreamer simulate --scenario FILE --model W --mode motion|full|densify|log|idm --sdc model|log --steps N --seed S
 //                        [--rollout K] --out FILE
 #include <cstdio>
 
@@ -29,7 +29,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: scenestreamer simulate --scenario FILE [--model WEIGHTS] --out OUT.tfrecord\n"
-    "                              [--mode motion|full|densify] [--sdc model|log] [--steps N] [--seed S] [--rollout K]\n"
+    "                              [--mode motion|full|densify|log|idm] [--sdc model|log] [--steps N] [--seed S] [--rollout K]\n"
     "                              [--index I]\n"
     "                              [--top-p P] [--temperature T] [--motion-reject=false] [--max-agents N] [--densify-target N]\n"
     "  Rolls the scenario out from its current step for N model steps (0.5 s each; default: to the scenario's last\n"
@@ -42,7 +42,8 @@ constexpr const char* kUsage =
     "        control), as an RL client's ego would.\n"
     "  --seed S --rollout K: the session's seed is the one `eval --seed S` gives the scenario's K-th rollout, so\n"
     "        simulate reproduces eval's rollouts one by one (and `convert --wosac-submission` turns them into the\n"
-    "        submission `eval --wosac-submission` writes).\n";
+    "        submission `eval --wosac-submission` writes).\n"
+    "  --mode log|idm: the rule baselines; they read the scenario's logged future (the model modes never do).\n";
 
 int fail(const std::string& msg) {
   spdlog::error("simulate: {}", msg);
@@ -61,10 +62,8 @@ int simulate_main(int argc, char** argv) {
     return usage_error(command, "--scenario and --out are required");
   SessionOptions o;
   const std::string mode = absl::GetFlag(FLAGS_mode);
-  if (mode == "motion") o.mode = SessionMode::motion;
-  else if (mode == "full") o.mode = SessionMode::full;
-  else if (mode == "densify") o.mode = SessionMode::densify;
-  else return fail("--mode '" + mode + "' is not motion, full or densify");
+  if (auto m = session_mode_from_name(mode)) o.mode = *m;
+  else return fail("--mode '" + mode + "' is not motion, full, densify, log or idm");
   const std::string sdc = absl::GetFlag(FLAGS_sdc);
   SdcRule sdc_rule = SdcRule::model;
   if (sdc == "log") sdc_rule = SdcRule::log;

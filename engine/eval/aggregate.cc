@@ -98,6 +98,13 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
     d.named_scenarios += s.named_by_scenario;
     d.evaluated_objects += s.evaluated;
     d.has_mmd = d.has_mmd || s.has_mmd;
+    if (s.has_ego) {
+      d.has_ego = true;
+      EgoSummary& g = d.ego;
+      g.episodes += s.ego.episodes, g.collided += s.ego.collided, g.rear_end += s.ego.rear_end;
+      g.ego_at_fault += s.ego.ego_at_fault, g.side += s.ego.side, g.off_road += s.ego.off_road;
+      g.background_collision_rate += s.ego.background_collision_rate;
+    }
     d.to_match += s.to_match, d.matched += s.matched;
     d.match_distance += s.match_distance * s.matched;
     if (s.has_mmd) {
@@ -120,6 +127,7 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
       for (size_t b = 0; b < src.log.size(); ++b) h.log[b] += src.log[b], h.sim[b] += src.sim[b];
     }
   }
+  if (d.has_ego && !scenarios.empty()) d.ego.background_collision_rate /= static_cast<double>(scenarios.size());
   d.placed_count_correlation = pearson(log_counts, generated_counts);
   d.match_distance = d.matched ? d.match_distance / d.matched : 0.0;
   d.filled_share = mean("filled_share", [](const auto& s) { return s.filled_share; });

@@ -39,6 +39,10 @@ struct DatasetEvaluation {
   // fewer than 3 scenarios or no spread.
   double placed_count_correlation = std::numeric_limits<double>::quiet_NaN();
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // summed
+  // The ego benchmark: episode counts summed over scenarios; the background collision rate is the mean over
+  // scenarios (each scenario's is the mean over its episodes).
+  bool has_ego = false;
+  EgoSummary ego;
   // Values undefined (NaN) in some scenarios are averaged over the others; how many were left out, by JSON key.
   std::map<std::string, int> undefined;
 };

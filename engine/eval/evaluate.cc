@@ -157,10 +157,39 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
       out.placed_log = log_placed_agents(s, map.road_edges, centre, options.session.roi_radius, !sdc_controlled);
     int driven = 0, filled = 0;
     double match_total = 0;
+    std::optional<EgoDriver> driver;
+    std::shared_ptr<const Scenario> ego_session_scenario;
+    if (options.ego) {
+      if (options.sdc != SdcRule::log) return absl::InvalidArgumentError("the ego benchmark needs SdcRule::log");
+      auto d = EgoDriver::create(s, *options.ego);
+      if (!d.ok()) return d.status();
+      driver = std::move(*d);
+      // The model modes see the log up to the current frame only; the rule modes replay or follow its future.
+      const bool rules = options.session.mode == SessionMode::log || options.session.mode == SessionMode::idm;
+      ego_session_scenario = rules ? scenario : std::make_shared<const Scenario>(history_only(s));
+      out.has_ego = true;
+    }
     for (int k = 0; k < options.rollouts; ++k) {
       SessionOptions o = options.session;
       o.seed = rollout_seed(options.session.seed, s.id, k);
-      auto steps = run_model_rollout(model, scenario, *context, o, options.sdc);
+      absl::StatusOr<std::vector<StepResult>> steps;
+      if (driver) {
+        EgoOutcome e;
+        const int num_steps = (s.num_frames() - 1 - now + kFramesPerStep - 1) / kFramesPerStep;
+        steps = run_ego_episode(model, ego_session_scenario, *context, o, *driver, num_steps, &e);
+        if (!steps.ok()) return steps.status();
+        EgoSummary& g = out.ego;
+        ++g.episodes;
+        g.collided += e.collision != EgoCollision::none;
+        g.rear_end += e.collision == EgoCollision::rear_end;
+        g.ego_at_fault += e.collision == EgoCollision::ego_at_fault;
+        g.side += e.collision == EgoCollision::side;
+        g.off_road += e.off_road;
+        g.background_collision_rate +=
+            e.background_agents ? static_cast<double>(e.background_collided) / e.background_agents : 0.0;
+      } else {
+        steps = run_model_rollout(model, scenario, *context, o, options.sdc);
+      }
       if (!steps.ok()) return steps.status();
       RolloutScene r = rollout_scene(s, tracks, *steps, full);
       if (options.submission_precision) round_to_submission(r.scene, now);
@@ -178,6 +207,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
       sims.push_back(scene_features(r.scene, evaluated, map, now, &log, evaluated));
       rollouts.push_back(std::move(r.scene));
     }
+    if (out.ego.episodes) out.ego.background_collision_rate /= out.ego.episodes;
     out.filled_share = driven + filled ? static_cast<double>(filled) / (driven + filled) : 0.0;
     out.match_distance = out.matched ? match_total / out.matched : 0.0;
     if (full) out.has_mmd = true, out.mmd_strict = strict.mean(), out.mmd_relaxed = relaxed.mean();

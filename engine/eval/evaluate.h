@@ -5,10 +5,12 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "engine/eval/ego_loop.h"
 #include "engine/eval/meta_metric.h"
 #include "engine/eval/mmd.h"
 #include "engine/eval/motion_metrics.h"
@@ -30,6 +32,19 @@ struct EvalOptions {
   // Score each rollout's future as a submission holds it (x, y, z, heading rounded to float32: round_to_submission),
   // so that scoring the submission written from these rollouts gives the same numbers.
   bool submission_precision = false;
+  // The closed-loop ego benchmark (ego_loop.h): the SDC driven by this policy through the session's tick, the way a
+  // client drives it (needs the model policy and SdcRule::log; the session modes log and idm are its baselines).
+  std::optional<EgoPolicy> ego;
+};
+
+// The ego benchmark's counts over one scenario's rollouts (episodes).
+struct EgoSummary {
+  int episodes = 0;
+  int collided = 0;                        // episodes with an ego collision
+  int rear_end = 0, ego_at_fault = 0, side = 0;  // ... by the first collision's kind (ego_loop.h)
+  int off_road = 0;                        // episodes in which the ego left the road
+  double background_collision_rate = 0;    // mean over episodes of the share of background agents that collided
+                                           // with another background agent
 };
 
 // Realism per window of the simulated future, so the drift of a long rollout shows: 0-8 s, 8-16 s, 16 s to the end
@@ -72,6 +87,8 @@ struct ScenarioEvaluation {
   // its first step, summed over the rollouts.
   PlacedAgents placed_log, placed_generated;
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // continuous features only
+  bool has_ego = false;            // EvalOptions::ego was set
+  EgoSummary ego;
 };
 
 // The seed of one rollout: depends on the base seed, the scenario's id and the rollout's index only, so results do

@@ -37,7 +37,9 @@ absl::StatusOr<std::vector<StepResult>> run_model_rollout(std::shared_ptr<const 
   SessionOptions o = options;
   o.controlled_ids.clear();
   o.control_sdc = sdc_rule == SdcRule::log;
-  auto history = std::make_shared<const Scenario>(history_only(*scenario));
+  // The rule modes replay or follow the log's future, so only they are given it.
+  const bool rules = o.mode == SessionMode::log || o.mode == SessionMode::idm;
+  auto history = rules ? scenario : std::make_shared<const Scenario>(history_only(*scenario));
   if (inputs) *inputs = {history, o, {}};
   auto session = Session::create(std::move(model), history, std::move(map), o);
   if (!session.ok())

@@ -23,8 +23,16 @@ const char* session_mode_name(SessionMode m) {
     case SessionMode::motion: return "motion";
     case SessionMode::full: return "full";
     case SessionMode::densify: return "densify";
+    case SessionMode::log: return "log";
+    case SessionMode::idm: return "idm";
   }
   return "invalid";
+}
+
+std::optional<SessionMode> session_mode_from_name(const std::string& name) {
+  for (SessionMode m : {SessionMode::motion, SessionMode::full, SessionMode::densify, SessionMode::log, SessionMode::idm})
+    if (name == session_mode_name(m)) return m;
+  return std::nullopt;
 }
 
 namespace {
@@ -586,8 +594,17 @@ absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& contro
   for (const ControlInput& c : controls) by_id.emplace(c.agent_id, &c);
 
   left_.clear();
+  std::set<int64_t> leaving;  // rule modes: agents their log has no state for at the next step
   for (Agent& a : agents_) {
-    if (a.forced) {
+    if (rule_mode() && !a.controlled) {
+      if (!a.planned) {
+        leaving.insert(a.id);
+        continue;
+      }
+      a.state = *a.planned;
+      a.kin = kinematic_state(a.state);
+      a.path_s = a.planned_s;
+    } else if (a.forced) {
       a.state = *a.forced;
       a.kin = kinematic_state(a.state);
       a.last_motion = kMotionStart;  // a teleport: the agent starts afresh where it was put
@@ -613,6 +630,19 @@ absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& contro
   }
   ++step_;
   entered_.clear();
+  if (rule_mode()) {
+    for (auto it = agents_.begin(); it != agents_.end();) {
+      if (leaving.count(it->id)) {
+        left_.push_back(it->id);
+        it = agents_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    join_logged_agents();
+    plan_rule_agents();
+    return current();
+  }
   // Agents that left the region of interest retire; their slots are recycled once out of the window.
   const Vec2 centre = roi_centre();
   for (auto it = agents_.begin(); it != agents_.end();) {
@@ -630,6 +660,9 @@ absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& contro
 }
 
 absl::StatusOr<std::vector<int64_t>> Session::inject(const InjectRequest& req) {
+  if (rule_mode())
+    return absl::FailedPreconditionError(absl::StrCat("inject: a ", session_mode_name(options_.mode),
+                                                      " session moves only its log's agents (inject needs a model mode)"));
   if (req.state) {
     if (req.count != 0 && req.count != 1)
       return absl::InvalidArgumentError("inject: give either a count or a state, not both");
@@ -671,6 +704,10 @@ absl::Status Session::state_force(const StateForceRequest& req) {
     if (std::none_of(agents_.begin(), agents_.end(), [&](const Agent& a) { return a.id == id; }))
       return absl::InvalidArgumentError(absl::StrCat("state force: no agent ", id, " in the session"));
     if (!seen_agents.insert(id).second) return absl::InvalidArgumentError(absl::StrCat("state force: agent ", id, " given twice"));
+    if (rule_mode() && std::none_of(agents_.begin(), agents_.end(), [&](const Agent& a) { return a.id == id && a.controlled; }))
+      return absl::FailedPreconditionError(absl::StrCat("state force: agent ", id, " follows its log in a ",
+                                                        session_mode_name(options_.mode),
+                                                        " session; only controlled agents can be placed"));
     if (auto st = check_state(s, absl::StrCat("state force: agent ", id)); !st.ok()) return st;
   }
   for (const auto& entry : req.lights) {
@@ -722,6 +759,15 @@ StepResult Session::sub_tick_view(int sub_tick, int ticks_per_step) const {
     AgentView& v = r.agents[i];
     v.entered = false;
     if (a.controlled) continue;  // its client's pushed pose is the host's to show (tick_between_steps)
+    if (rule_mode()) {
+      if (!a.planned) continue;  // it leaves at the step: shown where it is until then
+      const double f = static_cast<double>(sub_tick) / ticks_per_step;
+      v.state.x += f * (a.planned->x - a.state.x);
+      v.state.y += f * (a.planned->y - a.state.y);
+      v.state.heading = wrap_angle(a.state.heading + f * wrap_angle(a.planned->heading - a.state.heading));
+      if (sub_tick == ticks_per_step) v.state = *a.planned;
+      continue;
+    }
     if (a.forced) {
       // step() will teleport it whatever it sampled; until then it moves on at its last velocity instead of jumping.
       v.state.x += v.state.vx * t;

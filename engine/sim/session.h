@@ -16,6 +16,7 @@
 #include "engine/base/rng.h"
 #include "engine/model/model.h"
 #include "engine/scenario/scenario.h"
+#include "engine/sim/rule_agents.h"
 #include "engine/sim/session_types.h"
 #include "engine/sim/token_builders.h"
 #include "engine/tokens/light.h"
@@ -102,6 +103,12 @@ class Session {
     bool controlled = false;
     int entered_step = 0;
     std::optional<StepState> forced;  // StateForce for the next step
+    // Rule modes (log, idm) only: the arc length along its logged path (idm), and where the rule puts it at the next
+    // step (none: its log has no state there, so it leaves). Planned from every agent's state at the current step,
+    // as the model samples its controls, so a restored session plans the same again.
+    double path_s = 0;
+    std::optional<StepState> planned;
+    double planned_s = 0;
   };
   struct Light {
     int64_t lane = 0;
@@ -153,6 +160,12 @@ class Session {
   // kMaxStepDistance from the agent's pose at the last model step, speed in 0..100 m/s.
   absl::Status check_controls(const std::vector<ControlInput>& controls) const;
   int ticks_per_step() const { return options_.tick_hz / 2; }
+  // Rule modes (rule_agents.h): no decoder; agents follow their log or IDM along their logged path.
+  bool rule_mode() const { return options_.mode == SessionMode::log || options_.mode == SessionMode::idm; }
+  int track_of(int64_t id) const;  // the track index of a log agent's id, -1 for none
+  // Rule modes: the agents of the current step's log that are not in the session yet join it.
+  void join_logged_agents();
+  void plan_rule_agents();  // each rule-driven agent's state at the next step
 
   std::shared_ptr<const Model> model_;
   std::shared_ptr<const Scenario> scenario_;
@@ -176,6 +189,7 @@ class Session {
   Mat last_group_output_;            // decoder output of the group's last token (SOS or the last RS)
   int eos_cache_size_ = 0;           // cache size before the current step's EOS and motion batch
   Probe* probe_ = nullptr;
+  std::shared_ptr<const std::vector<LoggedPath>> paths_;  // rule modes: each track's logged path, by track index
 };
 
 }  // namespace ss

@@ -13,7 +13,8 @@ namespace {
 
 absl::Status check_options(const SessionOptions& o, const ModelConfig& c) {
   const int mode = static_cast<int>(o.mode);
-  if (mode < 0 || mode > 2) return absl::InvalidArgumentError(absl::StrCat("options.mode ", mode, " is not motion, full or densify"));
+  if (mode < 0 || mode > 4)
+    return absl::InvalidArgumentError(absl::StrCat("options.mode ", mode, " is not motion, full, densify, log or idm"));
   if (!(o.temperature > 0) || !std::isfinite(o.temperature))
     return absl::InvalidArgumentError(absl::StrCat("options.temperature ", o.temperature, " must be positive"));
   if (!(o.top_p > 0 && o.top_p <= 1)) return absl::InvalidArgumentError(absl::StrCat("options.top_p ", o.top_p, " must be in (0, 1]"));
@@ -79,6 +80,37 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
   const size_t num_controlled = chosen.size();
   if (static_cast<int>(num_controlled) > options.max_agents)
     return absl::InvalidArgumentError("more controlled agents than options.max_agents");
+
+  if (s->rule_mode()) {
+    // No tokens: the controlled agents, then every log agent valid at the current frame (no region of interest: a
+    // log replay shows the whole log), each at its logged state.
+    auto paths = std::make_shared<std::vector<LoggedPath>>();
+    for (const Track& t : scenario->tracks) paths->push_back(logged_path(t));
+    s->paths_ = std::move(paths);
+    s->step_ = t0;
+    for (int i : chosen) {
+      Agent a;
+      a.id = scenario->tracks[i].id;
+      a.type = model_type(scenario->tracks[i].type);
+      a.controlled = true;
+      a.entered_step = t0;
+      a.state = step_state_from_object(scenario->tracks[i].states[now_frame]);
+      a.kin = kinematic_state(a.state);
+      s->agents_.push_back(a);
+    }
+    s->join_logged_agents();
+    for (const TokenLight& tl : scenario_lights(*scenario, now_frame, s->map_->segments, s->map_->index,
+                                                s->model_->config().light_slots)) {
+      Light l;
+      l.lane = tl.lane;
+      l.map_id = tl.map_id;
+      l.pose = tl.pose;
+      l.state = log_light_state(*scenario, l.lane, now_frame);
+      s->lights_.push_back(l);
+    }
+    s->plan_rule_agents();
+    return s;
+  }
 
   // Log agents: the SDC's neighbours first (tracks to predict, then by distance), within the region of interest.
   const Vec2 centre = num_controlled > 0

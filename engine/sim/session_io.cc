@@ -109,6 +109,7 @@ std::string Session::save() const {
     p->set_controlled(a.controlled);
     p->set_entered_step(a.entered_step);
     if (a.forced) put_state(p->mutable_forced(), *a.forced);
+    p->set_path_s(a.path_s);
   }
   for (const Light& l : lights_) {
     state::Light* p = m.add_lights();
@@ -218,7 +219,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
         return bad(absl::StrCat("two pushed poses of agent ", c.agent_id));
     }
   }
-  if (mode < 0 || mode > 2 || !(o.temperature > 0) || !(o.top_p > 0 && o.top_p <= 1) || o.max_agents < 1 ||
+  if (mode < 0 || mode > 4 || !(o.temperature > 0) || !(o.top_p > 0 && o.top_p <= 1) || o.max_agents < 1 ||
       o.max_agents > c.agent_slots || !(o.roi_radius > 0) || o.window_steps < 0 || o.window_steps > c.window_steps)
     return bad("options out of range");
 
@@ -246,6 +247,8 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
     a.next_motion = p.next_motion();
     a.controlled = p.controlled();
     a.entered_step = p.entered_step();
+    a.path_s = p.path_s();
+    if (!std::isfinite(a.path_s)) return bad(absl::StrCat("agent ", a.id, " has a non-finite path position"));
   }
   for (const state::Light& p : m.lights()) {
     Light& l = s->lights_.emplace_back();
@@ -313,6 +316,15 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
     model->decode(*map, s->cache_, tokens, {});  // only the cache is wanted
   }
   if (s->eos_cache_size_ < 0 || s->eos_cache_size_ > s->cache_.size()) return bad("cache position out of range");
+  if (s->rule_mode()) {
+    // The plans are not saved: each is a function of the saved states, made again as step() made it.
+    auto paths = std::make_shared<std::vector<LoggedPath>>();
+    for (const Track& t : scenario->tracks) paths->push_back(logged_path(t));
+    s->paths_ = std::move(paths);
+    for (const Agent& a : s->agents_)
+      if (!a.controlled && s->track_of(a.id) < 0) return bad(absl::StrCat("agent ", a.id, " has no track to follow"));
+    s->plan_rule_agents();
+  }
   return s;
 }
 

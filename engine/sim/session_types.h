@@ -14,8 +14,11 @@
 
 namespace ss {
 
-enum class SessionMode : int { motion = 0, full = 1, densify = 2 };
+// motion, full and densify are the model's modes (the paper's); log and idm are rule baselines (rule_agents.h).
+enum class SessionMode : int { motion = 0, full = 1, densify = 2, log = 3, idm = 4 };
 const char* session_mode_name(SessionMode m);
+// The mode a name (session_mode_name's) stands for; none for another name.
+std::optional<SessionMode> session_mode_from_name(const std::string& name);
 
 struct SessionOptions {
   SessionMode mode = SessionMode::motion;

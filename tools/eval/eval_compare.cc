@@ -139,6 +139,14 @@ absl::StatusOr<CompareReport> compare_eval_files(const CompareRequest& request) 
   realism_metrics("", {}, true);
   for (const char* key : {"ade_avg", "ade_min", "fde_avg", "fde_min", "add", "fdd"})
     metrics.push_back({key, {{column({key}), 1.0}}});
+  // The ego benchmark's episode shares, when both files ran it (eval --ego).
+  bool ego = true;
+  for (const EvalFile* f : {&*a, &*b})
+    for (const auto& [id, e] : f->scenarios) ego = ego && e->contains("ego_outcome");
+  if (ego)
+    for (const char* key : {"collision", "rear_end", "ego_at_fault", "side", "background_fault", "off_road",
+                            "background_collision_rate"})
+      metrics.push_back({absl::StrCat("ego: ", key), {{column({"ego_outcome", key}), 1.0}}});
   if (windows > 1)
     for (size_t w = 0; w < windows; ++w)
       realism_metrics(absl::StrCat("window ", realism_window_name(static_cast<int>(w)), ": "),

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "absl/strings/str_format.h"
@@ -13,6 +14,8 @@ using nlohmann::json;
 
 std::string policy_label(const EvalRunInfo& run) {
   if (run.policy != EvalPolicy::model) return eval_policy_name(run.policy);
+  if (run.mode == SessionMode::log || run.mode == SessionMode::idm)
+    return absl::StrFormat("%s mode (rule baseline, no model)", session_mode_name(run.mode));
   return absl::StrFormat("model (%s mode, top-p %g, temperature %g, motion reject sampling %s)",
                          session_mode_name(run.mode), run.top_p, run.temperature, run.motion_reject ? "on" : "off");
 }
@@ -66,6 +69,19 @@ const char* sdc_rule_text(SdcRule r) {
                              : "the SDC follows its log (as an RL ego would) and is left out of the evaluated objects";
 }
 
+// Episode shares of the ego benchmark: each kind over the episodes.
+json ego_json(const EgoSummary& e) {
+  const double n = e.episodes > 0 ? e.episodes : std::numeric_limits<double>::quiet_NaN();
+  return {{"episodes", e.episodes},
+          {"collision", e.collided / n},
+          {"rear_end", e.rear_end / n},
+          {"ego_at_fault", e.ego_at_fault / n},
+          {"side", e.side / n},
+          {"background_fault", (e.rear_end + e.side) / n},
+          {"off_road", e.off_road / n},
+          {"background_collision_rate", e.background_collision_rate}};
+}
+
 std::string fmt(double v, int digits = 4) { return std::isfinite(v) ? absl::StrFormat("%.*f", digits, v) : "n/a"; }
 
 }  // namespace
@@ -80,6 +96,8 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
   j["sdc"] = sdc_rule_name(run.sdc);
   j["sdc_rule"] = sdc_rule_text(run.sdc);
   if (!run.model_path.empty()) j["model"] = run.model_path;
+  j["ego"] = run.ego ? json(ego_policy_name(*run.ego)) : json(nullptr);
+  if (d.has_ego) j["ego_outcome"] = ego_json(d.ego);
   if (run.policy == EvalPolicy::model) j["sampling"] = {{"top_p", run.top_p}, {"temperature", run.temperature}, {"motion_reject", run.motion_reject}};
   put_realism(j, d.realism);
   std::vector<RealismScores> windows;
@@ -137,6 +155,7 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
     o["tracks_to_predict"] = ttp;
     if (run.policy == EvalPolicy::model) o["model_driven_share"] = 1 - s.filled_share;
     o["windows"] = windows_json(s.windows);
+    if (s.has_ego) o["ego_outcome"] = ego_json(s.ego);
     if (s.has_mmd) {
       o["mmd"] = {{"strict", mmd_json(s.mmd_strict)}, {"relaxed", mmd_json(s.mmd_relaxed)}};
       o["placed_agents"] = {{"log", placed_json(s.placed_log, 1)},
@@ -197,6 +216,18 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
                           fmt(offroad_share(d.placed_generated), 3), d.placed_generated.offroad_vehicles,
                           d.placed_generated.vehicles, fmt(offroad_share(d.placed_log), 3),
                           d.placed_log.offroad_vehicles, d.placed_log.vehicles);
+  }
+  if (d.has_ego) {
+    const EgoSummary& e = d.ego;
+    const auto share = [&](int k) { return absl::StrFormat("%s (%d of %d)", fmt(e.episodes ? double(k) / e.episodes : NAN, 3), k, e.episodes); };
+    absl::StrAppendFormat(&t, "\n  ego --ego %s: episodes with an ego collision %s\n", ego_policy_name(*run.ego),
+                          share(e.collided));
+    absl::StrAppendFormat(&t, "    rear-end (another ran into it from behind) %s; ego at fault %s; side or crossing %s\n",
+                          share(e.rear_end), share(e.ego_at_fault), share(e.side));
+    absl::StrAppendFormat(&t, "    the background's fault (rear-end + side) %s; ego off road %s\n",
+                          share(e.rear_end + e.side), share(e.off_road));
+    absl::StrAppendFormat(&t, "    background agents colliding with each other: %s per episode (mean share)\n",
+                          fmt(e.background_collision_rate, 4));
   }
   if (run.policy == EvalPolicy::model) {
     absl::StrAppendFormat(&t, "\n  sim-agent frames moved at constant velocity (not driven by the model): %s%%\n",

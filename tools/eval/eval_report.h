@@ -1,6 +1,7 @@
 // What `scenestreamer eval` writes: one JSON object and a readable table.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <string>
 
@@ -18,13 +19,15 @@ struct EvalRunInfo {
   uint64_t seed = 0;
   double top_p = 0, temperature = 0;  // the model's sampling
   bool motion_reject = true;           // reject sampling of motion (SessionOptions::motion_reject)
+  std::optional<EgoPolicy> ego;        // the closed-loop ego benchmark's policy
   std::string model_path;  // empty for the baselines
 };
 
 // Keys: scenarios, rollouts, policy, sdc, realism_meta, <feature>_likelihood, kinematic, interactive, map,
 // collision_rate, offroad_rate, min_ade, ade_avg, ade_min, fde_avg, fde_min, add, fdd (all agents),
 // tracks_to_predict {...}, windows [...] (realism per window), mmd {strict, relaxed} in full mode, evaluated_objects,
-// per_scenario [...] (the same per scenario, with its windows, evaluated ids and the model's driven share).
+// ego {...} under --ego (episode shares: collision, rear_end, ego_at_fault, side, background_fault, off_road, and
+// background_collision_rate), per_scenario [...] (the same per scenario, with its windows, evaluated ids and the model's driven share).
 // Undefined values (NaN) are written as null by json_text() (engine/io/json_text.h).
 nlohmann::json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<const ScenarioEvaluation> scenarios);
 
