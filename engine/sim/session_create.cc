@@ -143,7 +143,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
   // Full mode starts its token sequence at the current step, where the model places the scene, as every training
   // sequence starts where its agents first appear. Steps of history before it would hold the controlled agents alone
   // (or nothing), a prefix no training sequence has: with it the model placed agents less like the log's
-  // (val, K = 32, with session.cc's placement temperature: realism 0.571 -> 0.602; models/MODEL_CARD.md).
+  // (val, K = 32, with session.cc's placement temperature: realism 0.571 -> 0.602; docs/model.md, "Full mode").
   const bool from_now = options.mode == SessionMode::full;
   std::vector<LogAgent> log;
   for (int i : chosen) {
