@@ -2,13 +2,15 @@
 # and with any Dockerfile builder elsewhere:
 #   docker build -t scenestreamer .                      portable x86-64-v3 (the default)
 #   docker build --build-arg NATIVE=ON -t scenestreamer . for the build host's CPU only (AVX-512 kernels where present)
-# Both stages install from deploy/install-deps.sh, the project's one package list (its build and runtime sets).
+# The build stage and the image install packages from deploy/install-deps.sh, the project's one package list (its
+# build and runtime sets); the binaries and the bundled files come from the install target (`cmake --install`).
 
-# ---- build: the server and its health probe, with the Makefile's CMake options ----
+# ---- build: the server and its health probe, with the Makefile's CMake options, installed by the install target's
+# server component (cmake --install; into /install, the image's /usr/local) ----
 FROM debian:bookworm AS build
 COPY deploy/install-deps.sh /src/deploy/install-deps.sh
 RUN /src/deploy/install-deps.sh build && rm -rf /var/lib/apt/lists/*
-# Only what CMake reads: a new model or new scenarios (final stage) leave the compiled layers cached.
+# Only what CMake reads: a new model or new scenarios (the share stage) leave the compiled layers cached.
 COPY CMakeLists.txt /src/
 COPY proto /src/proto
 COPY engine /src/engine
@@ -24,22 +26,25 @@ WORKDIR /src
 ARG NATIVE=OFF
 RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSCENESTREAMER_NATIVE=${NATIVE} \
  && cmake --build build --target scenestreamer-server scenestreamer-health \
- && strip build/server/scenestreamer-server build/client_examples/scenestreamer-health
+ && DESTDIR=/install cmake --install build --prefix /usr/local --component server --strip
 
-# ---- the image: run-time libraries, two binaries, the bundled scenarios and model ----
+# ---- share: the bundled model, its card and the sample scenarios, installed by the share component beside the
+# binaries (/usr/local/share/scenestreamer, where the server finds them from its own path) ----
+FROM build AS share
+COPY data/ /src/data/
+COPY models/ /src/models/
+RUN DESTDIR=/install cmake --install build --prefix /usr/local --component share
+
+# ---- the image: run-time libraries, the installed tree (two binaries, the bundled model and scenarios) ----
 FROM debian:bookworm
 COPY deploy/install-deps.sh /tmp/install-deps.sh
 RUN /tmp/install-deps.sh runtime && rm -rf /var/lib/apt/lists/* /tmp/install-deps.sh \
  && groupadd --system --gid 10001 scenestreamer \
  && useradd --system --uid 10001 --gid 10001 --home-dir /srv/scenestreamer --create-home scenestreamer
 WORKDIR /srv/scenestreamer
-COPY --from=build /src/build/server/scenestreamer-server /src/build/client_examples/scenestreamer-health \
-     /usr/local/bin/
-# The server looks for models/*.safetensors and data/ in its working directory. models/ holds the model card and,
-# once a trained model ships, its weights (.dockerignore keeps the training checkpoint out); without weights the
-# server serves random ones and says so loudly.
-COPY data/ data/
-COPY models/ models/
+# /usr/local/bin/scenestreamer-server and scenestreamer-health; /usr/local/share/scenestreamer/models (the default
+# model and its card; .dockerignore keeps the training checkpoint out of the context) and .../data (the scenarios).
+COPY --from=share /install/usr/local/ /usr/local/
 RUN mkdir snapshots && chown scenestreamer:scenestreamer snapshots
 VOLUME /srv/scenestreamer/snapshots
 USER scenestreamer

@@ -1,13 +1,18 @@
-// scenestreamer-server: the SceneStreamer simulator over gRPC. With no flags it loads the bundled model (or random
-// weights, loudly, until a trained model exists) and the bundled scenarios and serves on port 50051.
+// scenestreamer-server: the SceneStreamer simulator over gRPC. With no flags it loads the bundled default model and the
+// bundled sample scenarios (share/scenestreamer beside an installed server's bin/, or the source tree for a server in
+// its build tree: ss::cli::bundled_dir) and serves on 127.0.0.1:50051.
 #include <signal.h>
 
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
@@ -18,17 +23,21 @@
 #include "server/simulator_service.h"
 #include "server/tls.h"
 #include "spdlog/spdlog.h"
+#include "tools/command_line.h"
 
 ABSL_FLAG(std::string, host, "127.0.0.1",
           "Address to listen on. Loopback by default: pass --host=0.0.0.0 to serve other machines (the image and the "
           "manifests in deploy/ do, on purpose), ideally with --tls_cert/--tls_key and --tokens_file");
 ABSL_FLAG(int, port, 50051, "gRPC port (0: pick a free one; the chosen port is logged)");
 ABSL_FLAG(std::string, model, "",
-          "Model weights (safetensors); empty: the first models/*.safetensors, else random weights");
+          "Model weights (safetensors); empty: the bundled default model (models/default.safetensors in "
+          "share/scenestreamer beside an installed server's bin/, or in the source tree for a server in its build "
+          "tree), else random weights");
 ABSL_FLAG(std::string, random_config, "large", "Config of the random weights used when no model exists");
 ABSL_FLAG(std::string, scenario_dir, "",
-          "Directory of WOMD TFRecord / GPUDrive JSON scenarios; empty: data/ if it holds any, else "
-          "../shared/data/womd/tfrecord");
+          "Directory of WOMD TFRecord / GPUDrive JSON scenarios; empty: the bundled sample scenarios (data/ in "
+          "share/scenestreamer beside an installed server's bin/, or in the source tree for a server in its build "
+          "tree)");
 ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction and SIGTERM, and restored from on start");
 ABSL_FLAG(double, snapshot_interval_s, 30,
           "With --snapshot_dir: sessions that changed are saved this often, so a crash loses at most this much "
@@ -72,28 +81,53 @@ ABSL_FLAG(std::string, health_host, "127.0.0.1", "Address of --health_port");
 
 namespace {
 
-std::string default_model() {
+constexpr const char* kUsage =
+    "usage: scenestreamer-server [--host H] [--port P] [--model W] [--scenario_dir D] [--snapshot_dir S] ...\n"
+    "  Serves the SceneStreamer simulator (scenestreamer.v1.Simulator, gRPC health, reflection) on H:P, with the\n"
+    "  bundled default model and sample scenarios unless --model and --scenario_dir say otherwise.";
+
+// The bundled default model; "" (random weights, loudly) when there is none, with the reason.
+std::string default_model(std::string* why) {
+  const absl::StatusOr<std::string> bundled = ss::cli::bundled_dir();
+  if (!bundled.ok()) {
+    *why = std::string(bundled.status().message());
+    return "";
+  }
+  const std::filesystem::path path = std::filesystem::path(*bundled) / "models" / "default.safetensors";
   std::error_code ec;
-  std::vector<std::string> found;
-  for (const auto& e : std::filesystem::directory_iterator("models", ec))
-    if (e.path().extension() == ".safetensors") found.push_back(e.path().string());
-  std::sort(found.begin(), found.end());
-  return found.empty() ? "" : found[0];
+  if (std::filesystem::exists(path, ec)) return path.string();
+  *why = "no default model at " + path.string();
+  return "";
 }
 
-std::string default_scenario_dir() {
+// The bundled sample scenarios' folder; NOT_FOUND saying where it looked when it holds none.
+absl::StatusOr<std::string> default_scenario_dir() {
+  const absl::StatusOr<std::string> bundled = ss::cli::bundled_dir();
+  if (!bundled.ok())
+    return absl::NotFoundError(absl::StrCat("no --scenario_dir given, and ", bundled.status().message()));
+  const std::filesystem::path dir = std::filesystem::path(*bundled) / "data";
   std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator("data", ec)) {
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
     const std::string n = e.path().filename().string();
-    if (n.find(".tfrecord") != std::string::npos || e.path().extension() == ".json") return "data";
+    if (n.find(".tfrecord") != std::string::npos || e.path().extension() == ".json") return dir.string();
   }
-  return "../shared/data/womd/tfrecord";
+  return absl::NotFoundError(absl::StrCat("no --scenario_dir given, and the bundled scenarios' folder ", dir.string(),
+                                          " holds no WOMD TFRecord or JSON scenario"));
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  absl::SetProgramUsageMessage("scenestreamer-server [--port P] [--model W] [--scenario_dir D] [--snapshot_dir S] ...");
+  // --help: the server's flags with their defaults, as the tools list theirs (Abseil's own --help looks for flags in
+  // a file named after the program, and finds none). --helpfull is still Abseil's: every flag of every library.
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--") == 0) break;
+    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-help") == 0) {
+      std::fputs(ss::cli::file_flags_help(kUsage, __FILE__).c_str(), stdout);
+      return 0;
+    }
+  }
+  absl::SetProgramUsageMessage(kUsage);
   absl::ParseCommandLine(argc, argv);
   spdlog::set_level(spdlog::level::from_str(absl::GetFlag(FLAGS_log_level)));
   const int compute_threads = absl::GetFlag(FLAGS_threads) > 0 ? absl::GetFlag(FLAGS_threads)
@@ -116,10 +150,18 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   ss::EngineOptions eo;
-  eo.model_path = absl::GetFlag(FLAGS_model).empty() ? default_model() : absl::GetFlag(FLAGS_model);
+  std::string no_model_why;
+  eo.model_path = absl::GetFlag(FLAGS_model).empty() ? default_model(&no_model_why) : absl::GetFlag(FLAGS_model);
   eo.random_config = absl::GetFlag(FLAGS_random_config);
-  const std::string scenario_dir =
-      absl::GetFlag(FLAGS_scenario_dir).empty() ? default_scenario_dir() : absl::GetFlag(FLAGS_scenario_dir);
+  std::string scenario_dir = absl::GetFlag(FLAGS_scenario_dir);
+  if (scenario_dir.empty()) {
+    const absl::StatusOr<std::string> bundled = default_scenario_dir();
+    if (!bundled.ok()) {
+      spdlog::critical("cannot start: {} (pass --scenario_dir DIR)", std::string(bundled.status().message()));
+      return 1;
+    }
+    scenario_dir = *bundled;
+  }
   eo.scenario_paths = {scenario_dir};
   const int max_message = absl::GetFlag(FLAGS_max_message_mb) << 20;
   eo.max_scenario_bytes = static_cast<size_t>(max_message);
@@ -132,8 +174,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (ss::engine_random_weights(**engine))
-    spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise). Pass --model FILE or "
-                 "put a .safetensors file in models/ !!!", eo.random_config);
+    spdlog::warn("!!! NO TRAINED MODEL: serving RANDOM '{}' weights (traffic will be noise): {}. Pass --model FILE "
+                 "!!!", eo.random_config, no_model_why);
   else
     spdlog::info("model {} (config {}, {} keys and values, {} products, {} threads per step)", eo.model_path,
                  ss::engine_model_name(**engine), ss::engine_kv_precision(**engine),

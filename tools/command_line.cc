@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 
 #include "absl/flags/reflection.h"
@@ -57,14 +58,33 @@ std::string wrap(const std::string& text, int indent, size_t width) {
   return out;
 }
 
-void print_help(const Command& command, const FlagTable& flags) {
-  std::string text = absl::StrCat(command.usage, "\nflags:\n");
+std::string help_text(absl::string_view usage, const FlagTable& flags) {
+  std::string text = absl::StrCat(usage, "\nflags:\n");
   for (const auto& [name, flag] : flags) {
     std::string value = flag->DefaultValue();
     if (flag->IsOfType<std::string>()) value = absl::StrCat("\"", value, "\"");
     absl::StrAppend(&text, "  --", name, " (default: ", value, ")\n", wrap(flag->Help(), 6, 116));
   }
-  std::fputs(text.c_str(), stdout);
+  return text;
+}
+
+void print_help(const Command& command, const FlagTable& flags) {
+  std::fputs(help_text(command.usage, flags).c_str(), stdout);
+}
+
+// Whether `path` is `dir` or inside it (both made absolute and normal first; no file needs to exist).
+bool is_within(const std::filesystem::path& path, const std::filesystem::path& dir) {
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::weakly_canonical(path, ec);
+  if (ec) return false;
+  const std::filesystem::path d = std::filesystem::weakly_canonical(dir, ec);
+  if (ec) return false;
+  auto pi = p.begin();
+  for (auto di = d.begin(); di != d.end(); ++di, ++pi) {
+    if (di->empty()) continue;  // a trailing slash
+    if (pi == p.end() || *pi != *di) return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -113,6 +133,29 @@ int usage_error(const Command& command, absl::string_view message) {
   std::fprintf(stderr, "%s: %s\n(`%s --help` shows its usage and flags)\n", command.name.c_str(),
                std::string(message).c_str(), command.name.c_str());
   return 2;
+}
+
+std::string file_flags_help(absl::string_view usage, absl::string_view file) {
+  FlagTable table;
+  for (const auto& [name, flag] : absl::GetAllFlags())
+    // Abseil's Filename() is __FILE__ without its leading slashes.
+    if (absl::EndsWith(file, flag->Filename())) table.emplace(std::string(name), flag);
+  return help_text(usage, table);
+}
+
+absl::StatusOr<std::string> bundled_dir() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return absl::NotFoundError(absl::StrCat("cannot find the bundled files: /proc/self/exe: ", ec.message()));
+  // Installed: P/bin/<program> and P/share/scenestreamer (the install rules in CMakeLists.txt).
+  const std::filesystem::path installed = exe.parent_path().parent_path() / "share" / "scenestreamer";
+  if (std::filesystem::is_directory(installed, ec)) return installed.lexically_normal().string();
+  // In the build tree: the source tree it was configured from (compiled in by tools/CMakeLists.txt).
+  if (is_within(exe, SS_BUILD_DIR) && std::filesystem::is_directory(SS_SOURCE_DIR, ec)) return std::string(SS_SOURCE_DIR);
+  return absl::NotFoundError(absl::StrCat("no bundled files for ", exe.string(), ": no ",
+                                          installed.lexically_normal().string(),
+                                          " (where `cmake --install` puts them beside bin/), and the program is not "
+                                          "in its build tree (", SS_BUILD_DIR, ")"));
 }
 
 }  // namespace ss::cli

@@ -23,6 +23,7 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/flags/commandlineflag.h"
 #include "absl/flags/flag.h"
+#include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 
 namespace ss::cli {
@@ -67,5 +68,18 @@ std::optional<int> parse_command(const Command& command, int argc, char** argv, 
 
 // "<command name>: <message>" and where the usage is, on stderr; returns 2, the exit code of usage errors.
 int usage_error(const Command& command, absl::string_view message);
+
+// `usage`, then every flag defined in `file` (__FILE__ of the source that defines them) with its default and help, in
+// the layout of a command's --help, the names as Abseil spells them (--snapshot_dir): for a program that parses its
+// flags with absl::ParseCommandLine, like the server, whose --help Abseil would answer with the flags of a file
+// named after the program only.
+std::string file_flags_help(absl::string_view usage, absl::string_view file);
+
+// Where the programs' bundled files are: the folder holding models/ (the default model and its card) and data/ (the
+// sample scenarios). For an installed program (`cmake --install build --prefix P`), P/share/scenestreamer, found from
+// the executable's own path (/proc/self/exe: <exe dir>/../share/scenestreamer); for a program run from the build tree
+// it was built in, the source tree it was built from. Never the working directory. NOT_FOUND, naming the places
+// looked at, when neither applies (a binary copied elsewhere without its share/ folder).
+absl::StatusOr<std::string> bundled_dir();
 
 }  // namespace ss::cli

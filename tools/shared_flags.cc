@@ -5,8 +5,11 @@
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
 #include "engine/sim/session_types.h"
+#include "tools/command_line.h"
 
-ABSL_FLAG(std::string, model, "", "model weights (safetensors); default: models/default.safetensors if it exists");
+ABSL_FLAG(std::string, model, "",
+          "model weights (safetensors); default: the bundled default model, models/default.safetensors in "
+          "share/scenestreamer beside an installed program's bin/ (the source tree's for a program in its build tree)");
 ABSL_FLAG(uint64_t, seed, 0, "random seed: the same seed gives the same output");
 ABSL_FLAG(bool, json, false, "print one JSON object instead of text");
 ABSL_FLAG(std::string, out, "", "where to write");
@@ -33,10 +36,12 @@ namespace ss::cli {
 
 absl::StatusOr<std::string> model_path() {
   if (!absl::GetFlag(FLAGS_model).empty()) return absl::GetFlag(FLAGS_model);
+  const absl::StatusOr<std::string> bundled = bundled_dir();
+  if (!bundled.ok()) return absl::NotFoundError(absl::StrCat("no --model given, and ", bundled.status().message()));
+  const std::string path = (std::filesystem::path(*bundled) / kDefaultModel).string();
   std::error_code ec;
-  if (std::filesystem::exists(kDefaultModel, ec)) return std::string(kDefaultModel);
-  return absl::NotFoundError(absl::StrCat("no --model given and no default model at ", kDefaultModel,
-                                          " (none ships until its training run ends: models/MODEL_CARD.md)"));
+  if (std::filesystem::exists(path, ec)) return path;
+  return absl::NotFoundError(absl::StrCat("no --model given and no default model at ", path));
 }
 
 }  // namespace ss::cli

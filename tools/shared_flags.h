@@ -23,9 +23,10 @@ ABSL_DECLARE_FLAG(std::string, submission_metadata);  // convert, eval
 
 namespace ss::cli {
 
-// The trained default model, where `make serve` and the server look for it (relative to the working directory).
+// The trained default model, relative to the bundled files' folder (bundled_dir(), tools/command_line.h): the
+// installed share/scenestreamer, or the source tree of a program in its build tree.
 inline constexpr const char* kDefaultModel = "models/default.safetensors";
-// --model, or the default model when the flag is absent; NOT_FOUND saying so when neither exists.
+// --model, or the default model when the flag is absent; NOT_FOUND naming where it looked when neither exists.
 absl::StatusOr<std::string> model_path();
 
 }  // namespace ss::cli

@@ -1,7 +1,8 @@
 """The Dockerfile builds what `make` builds, the way `make` builds it: packages only through deploy/install-deps.sh
 (its build set in the build stage, its runtime set in the image), CMake configured with the Makefile's CMAKE_OPTIONS,
-the binaries it copies built as targets that exist, and a slim, non-root image whose health check is the project's
-own probe. Reads the files; builds nothing (`make image` does, see README)."""
+the programs and the bundled files installed by the install target (its server component in the build stage, its
+share component in a stage of its own, so a new model leaves the compiled layers cached), and a slim, non-root image
+whose health check is the project's own probe. Reads the files; builds nothing (`make image` does, see README)."""
 import os
 import re
 import shlex
@@ -54,12 +55,13 @@ class DockerfileTest(unittest.TestCase):
     def runs(self, stage):
         return [a for i, a in self.stages[stage][1] if i == "RUN"]
 
-    def test_two_stages_on_debian_bookworm(self):
-        self.assertEqual([s[0] for s in self.stages], ["debian:bookworm AS build", "debian:bookworm"])
+    def test_stages_on_debian_bookworm(self):
+        self.assertEqual([s[0] for s in self.stages],
+                         ["debian:bookworm AS build", "build AS share", "debian:bookworm"])
 
     def test_packages_come_only_from_install_deps(self):
         sets = re.findall(r"^  (\w+)\) PACKAGES=", read("deploy", "install-deps.sh"), re.M)
-        for stage, wanted in ((0, "build"), (1, "runtime")):
+        for stage, wanted in ((0, "build"), (2, "runtime")):
             runs = " && ".join(self.runs(stage))
             self.assertRegex(runs, rf"install-deps\.sh {wanted}\b", f"stage {stage}")
             self.assertIn(wanted, sets)
@@ -81,15 +83,31 @@ class DockerfileTest(unittest.TestCase):
         self.assertIn(("ARG", "NATIVE=OFF"), self.stages[0][1])
         self.assertRegex(read("Makefile"), r"cmake -S \. -B \$\(BUILD\) \$\(CMAKE_OPTIONS\)")
 
-    def test_copied_binaries_are_built_targets(self):
+    def test_installed_binaries_are_built_targets(self):
         build = [r for r in self.runs(0) if "cmake --build" in r][0]
         targets = re.search(r"--target ([\w\- ]+?)(?:&&|$)", build).group(1).split()
         self.assertEqual(sorted(targets), ["scenestreamer-health", "scenestreamer-server"])
         cmake = read("server", "CMakeLists.txt") + read("client_examples", "CMakeLists.txt")
-        copy = [a for i, a in self.stages[1][1] if i == "COPY" and a.startswith("--from=build")][0]
         for t in targets:
             self.assertIn(f"add_executable({t} ", cmake)
-            self.assertRegex(copy, rf"/src/build/\w+/{t}\b")
+        # The install target's server component holds exactly the targets built (a missing one fails the install).
+        component = re.findall(r"install\(TARGETS ([\w\- ]+?) RUNTIME DESTINATION bin COMPONENT server\)",
+                               read("CMakeLists.txt"))
+        self.assertEqual([sorted(c.split()) for c in component], [sorted(targets)])
+        self.assertRegex(build, r"DESTDIR=/install cmake --install build --prefix /usr/local --component server")
+
+    def test_bundled_files_come_from_the_install_target(self):
+        share = dict()
+        for ins, args in self.stages[1][1]:
+            share.setdefault(ins, []).append(args)
+        self.assertEqual(sorted(share["COPY"]), ["data/ /src/data/", "models/ /src/models/"])
+        self.assertEqual(share["RUN"], ["DESTDIR=/install cmake --install build --prefix /usr/local --component share"])
+        self.assertRegex(read("CMakeLists.txt"), r"install\(FILES models/default.safetensors DESTINATION "
+                                                 r"share/scenestreamer/models COMPONENT share\)")
+        self.assertRegex(read("CMakeLists.txt"), r"install\(DIRECTORY data/ DESTINATION share/scenestreamer/data "
+                                                 r"COMPONENT share\)")
+        copies = [a for i, a in self.stages[2][1] if i == "COPY" and a.startswith("--from=")]
+        self.assertEqual(copies, ["--from=share /install/usr/local/ /usr/local/"])
 
     def test_build_stage_copies_sources_only(self):
         # A new model or new scenarios must not invalidate the compiled layers: the build stage copies the folders
@@ -102,7 +120,7 @@ class DockerfileTest(unittest.TestCase):
 
     def test_slim_non_root_image_with_its_own_health_probe(self):
         final = dict()
-        for ins, args in self.stages[1][1]:
+        for ins, args in self.stages[2][1]:
             final.setdefault(ins, []).append(args)
         self.assertEqual(final["USER"], ["scenestreamer"])
         self.assertIn("useradd", " ".join(final["RUN"]))
@@ -112,8 +130,8 @@ class DockerfileTest(unittest.TestCase):
         self.assertIn("scenestreamer-server", entry)
         self.assertIn("--port=50051", entry)
         self.assertIn("--snapshot_dir=/srv/scenestreamer/snapshots", entry)
-        self.assertIn("data/ data/", final["COPY"])
-        self.assertIn("models/ models/", final["COPY"])
+        # The bundled files only through the install tree (test_bundled_files_come_from_the_install_target).
+        self.assertFalse([a for a in final["COPY"] if a.startswith(("data", "models"))], final["COPY"])
         # No build tree, VCS or training checkpoint in the context.
         ignore = read(".dockerignore").split()
         for pattern in ("build", ".git", "models/*", "!models/*.safetensors"):
@@ -124,7 +142,7 @@ class DockerfileTest(unittest.TestCase):
         if not server:
             self.skipTest("SS_SERVER not set (run through ctest)")
         helpfull = subprocess.run([server, "--helpfull"], capture_output=True, text=True).stdout
-        cmd = [a for i, a in self.stages[1][1] if i == "CMD"][-1]
+        cmd = [a for i, a in self.stages[2][1] if i == "CMD"][-1]
         for flag in re.findall(r'"--(\w+)=', cmd):
             self.assertIn(f"--{flag} ", helpfull)
 

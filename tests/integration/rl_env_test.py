@@ -1,6 +1,8 @@
-"""The RL package (python/scenestreamer) against the real server on loopback: the Gymnasium-style env's API contract,
-the vector env (one round trip per tick, counted), the multi-agent env, and the engine's events with a scripted ego
-driven into another agent, off the road and through a red light."""
+"""The RL package (python/scenestreamer) against the real server on loopback: the Gymnasium-style env's API contract
+and the determinism Gymnasium's checker asks of it (whole infos), the normalised actions and the flat observation,
+the vector env (one round trip per tick, counted), the multi-agent env under the checks of PettingZoo's
+parallel_api_test and parallel_seed_test, and the engine's events with a scripted ego driven into another agent, off
+the road and through a red light."""
 import inspect
 import math
 import threading
@@ -10,8 +12,10 @@ import unittest
 import grpc
 import numpy as np
 
-from scenestreamer import (HAVE_GYMNASIUM, RewardConfig, SceneStreamerEnv, SceneStreamerParallelEnv,
-                           SceneStreamerVectorEnv, cruise)
+from scenestreamer import (HAVE_GYMNASIUM, HAVE_PETTINGZOO, FlatObservation, RewardConfig, SceneStreamerEnv,
+                           SceneStreamerParallelEnv, SceneStreamerVectorEnv, cruise)
+from scenestreamer.env import check_action
+from scenestreamer.spaces import flatten
 from scenestreamer.v1 import simulator_pb2 as pb
 from server_process import ServerTestCase
 
@@ -38,6 +42,20 @@ class CallLog(grpc.UnaryUnaryClientInterceptor):
 NO_ENDING = RewardConfig(end_on_collision=False, end_on_off_road=False)  # episodes end by truncation only
 
 
+def equivalent(a, b):
+    """Gymnasium's data_equivalence: the same types, dict keys (in any order), sequence lengths, and values; arrays of
+    the same dtype, shape and elements."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(equivalent(a[k], b[k]) for k in a)
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(equivalent(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and bool(np.all(a == b))
+    return a == b
+
+
 def assert_obs_equal(test, a, b):
     test.assertEqual(a.keys(), b.keys())
     for k in a:
@@ -57,7 +75,8 @@ class EnvTest(ServerTestCase):
         self.assertIsNone(params["options"].default)
         obs, info = env.reset(seed=3)
         self.assertIsInstance(info, dict)
-        self.assertIn("session_id", info)
+        self.assertNotIn("session_id", info)  # new each episode: an attribute, so equal seeds give equal infos
+        self.assertIn(env.session_id, self.sessions())
         self.assertTrue(env.observation_space.contains(obs), obs)
         self.assertEqual(env.action_space.shape, (2,))
         steps, seen = 0, {"lanes": 0, "road_edges": 0, "agents": 0}
@@ -85,6 +104,87 @@ class EnvTest(ServerTestCase):
         self.assertGreater(seen["road_edges"], 0)
         self.assertGreater(seen["agents"], 0)
         env.close()
+
+    def test_same_seed_equal_observations_rewards_and_infos(self):
+        """Gymnasium's env checker (check_reset_seed, check_step_determinism): the same env reset twice with the same
+        seed, and stepped with the same actions, gives equivalent observations, rewards, flags and whole infos; the
+        session id, new each episode, is an attribute, not in the infos."""
+        self.assertTrue(equivalent({"a": [1, np.zeros(2)]}, {"a": [1, np.zeros(2)]}))
+        self.assertFalse(equivalent({"a": 1}, {"a": 1, "session_id": "x"}))
+        self.assertFalse(equivalent(np.zeros(2, np.float32), np.zeros(2)))
+        env = SceneStreamerEnv(self.server.target, max_steps=4, reward=NO_ENDING)
+        runs, sessions = [], []
+        for _ in range(2):
+            env.action_space.seed(123)
+            obs, info = env.reset(seed=123)
+            sessions.append(env.session_id)
+            self.assertIn(env.session_id, self.sessions())
+            run = [(obs, info)]
+            for _ in range(4):
+                run.append(env.step(env.action_space.sample()))
+            runs.append((run, env.np_random.bit_generator.state))
+        (a, rng_a), (b, rng_b) = runs
+        self.assertEqual(rng_a, rng_b)
+        self.assertNotEqual(sessions[0], sessions[1])
+        self.assertEqual(len(a), len(b))
+        for k, (x, y) in enumerate(zip(a, b)):
+            self.assertEqual(x[-1].keys(), y[-1].keys(), f"infos at step {k}")
+            self.assertNotIn("session_id", x[-1])
+            for part, (u, v) in enumerate(zip(x, y)):
+                self.assertTrue(equivalent(u, v), f"step {k}, part {part}: {u!r} != {v!r}")
+        self.assertEqual(set(a[0][1]), {"scenario", "ego_id", "sim_time"})
+        for k in ("tick", "sim_time", "agents", "collision", "off_road", "ran_red_light", "progress", "lane_id"):
+            self.assertIn(k, a[1][4])
+        env.close()
+
+    def test_normalized_actions(self):
+        """normalize_actions: Box(-1, 1), and a normalised action drives the ego exactly as its physical value."""
+        norm = SceneStreamerEnv(self.server.target, max_steps=3, reward=NO_ENDING, normalize_actions=True)
+        phys = SceneStreamerEnv(self.server.target, max_steps=3, reward=NO_ENDING)
+        np.testing.assert_array_equal(norm.action_space.low, [-1, -1])
+        np.testing.assert_array_equal(norm.action_space.high, [1, 1])
+        obs_n, _ = norm.reset(seed=8)
+        obs_p, _ = phys.reset(seed=8)
+        assert_obs_equal(self, obs_n, obs_p)
+        speeds = [obs_n["ego"][0]]
+        for u in ([1.0, 0.0], [-1.0, 0.5], [0.25, -1.0]):
+            obs_n, r_n, _, _, info_n = norm.step(u)
+            obs_p, r_p, _, _, info_p = phys.step(check_action(u, normalized=True))
+            assert_obs_equal(self, obs_n, obs_p)
+            self.assertEqual((r_n, info_n), (r_p, info_p))
+            speeds.append(obs_n["ego"][0])
+        # +1 is full acceleration (4 m/s^2 for 0.5 s), -1 full braking: the ego's speed goes up, then down.
+        self.assertGreater(speeds[1], speeds[0])
+        self.assertLess(speeds[2], speeds[1])
+        with self.assertRaisesRegex(ValueError, "not finite"):
+            norm.step([np.nan, 0])
+        norm.close()
+        phys.close()
+
+    def test_flat_observation(self):
+        """FlatObservation: one float32 vector inside its Box, the dict env's observation flattened in order."""
+        flat = FlatObservation(SceneStreamerEnv(self.server.target, max_steps=2, normalize_actions=True))
+        plain = SceneStreamerEnv(self.server.target, max_steps=2, normalize_actions=True)
+        space = flat.observation_space
+        self.assertEqual(len(space.shape), 1)
+        self.assertEqual(space.shape[0], sum(b.low.size for b in plain.observation_space.spaces.values()))
+        v, info = flat.reset(seed=5)
+        obs, info_plain = plain.reset(seed=5)
+        self.assertEqual((v.shape, v.dtype), (space.shape, np.float32))
+        self.assertTrue(space.contains(v))
+        np.testing.assert_array_equal(v, flatten(plain.observation_space, obs))
+        self.assertEqual(info, info_plain)
+        lanes = dict((k, (a, b)) for k, a, b in flat.layout())["lanes"]
+        np.testing.assert_array_equal(v[lanes[0]:lanes[1]], obs["lanes"].ravel())
+        v, reward, _, _, _ = flat.step([0.2, 0.0])
+        obs, reward_plain, _, _, _ = plain.step([0.2, 0.0])
+        self.assertTrue(space.contains(v))
+        np.testing.assert_array_equal(v, flatten(plain.observation_space, obs))
+        self.assertEqual(reward, reward_plain)
+        self.assertIn(flat.unwrapped.session_id, self.sessions())
+        flat.close()
+        plain.close()
+        self.assertIsNone(flat.unwrapped.session_id)
 
     def test_bad_actions_are_refused_with_the_reason(self):
         env = SceneStreamerEnv(self.server.target)
@@ -122,14 +222,15 @@ class EnvTest(ServerTestCase):
 
     def test_close_releases_the_session(self):
         env = SceneStreamerEnv(self.server.target)
-        _, info = env.reset(seed=2)
-        first = info["session_id"]
+        env.reset(seed=2)
+        first = env.session_id
         self.assertIn(first, self.sessions())
-        _, info = env.reset(seed=3)  # a new episode closes the previous session
+        env.reset(seed=3)  # a new episode closes the previous session
+        second = env.session_id
         self.assertNotIn(first, self.sessions())
-        self.assertIn(info["session_id"], self.sessions())
+        self.assertIn(second, self.sessions())
         env.close()
-        self.assertNotIn(info["session_id"], self.sessions())
+        self.assertNotIn(second, self.sessions())
         env.close()  # twice is harmless
 
     def test_vector_env_one_round_trip_per_tick(self):
@@ -144,8 +245,10 @@ class EnvTest(ServerTestCase):
         self.assertEqual(len(log.since(mark, "CreateSession")), n)
         self.assertTrue(venv.observation_space.contains(obs))
         self.assertEqual(obs["agents"].shape, (n,) + venv.single_observation_space["agents"].shape)
-        self.assertEqual(len(set(infos["session_id"])), n)
-        first_sessions = set(infos["session_id"])
+        self.assertNotIn("session_id", infos)
+        self.assertEqual(len(set(venv.session_ids)), n)
+        first_sessions = set(venv.session_ids)
+        self.assertTrue(first_sessions <= self.sessions())
 
         actions = np.stack([cruise({k: v[i] for k, v in obs.items()}) for i in range(n)])
         mark = len(log.calls)
@@ -205,6 +308,69 @@ class EnvTest(ServerTestCase):
             env.step({"agent_0": [0, 0]})
         env.close()
         channel.close()
+
+    def test_parallel_env_passes_pettingzoo_api_checks(self):
+        """What PettingZoo's parallel_api_test reads and asserts, on the env as a client gets it."""
+        self.assertFalse(HAVE_PETTINGZOO, "Debian has no pettingzoo: this covers the stand-in base class")
+        env = SceneStreamerParallelEnv(self.server.target, num_agents=2, max_steps=4, normalize_actions=True)
+        env.max_cycles = 1000  # the test sets it
+        self.assertIs(env.unwrapped, env)
+        self.assertEqual(env.metadata["name"], "scenestreamer_parallel_v0")
+        self.assertEqual(str(env), "scenestreamer_parallel_v0")
+        self.assertEqual(env.max_num_agents, 2)
+        self.assertEqual(env.agents, [])
+        for a in env.possible_agents:
+            self.assertIs(env.observation_space(a), env.observation_space(a))
+            self.assertIs(env.action_space(a), env.action_space(a))
+            self.assertIs(env.observation_spaces[a], env.observation_space(a))
+            self.assertIs(env.action_spaces[a], env.action_space(a))
+            np.testing.assert_array_equal(env.action_space(a).high, [1, 1])
+        env.reset(seed=0, options={"options": 1})  # reset takes seed and options
+        for _ in range(2):
+            obs, infos = env.reset()
+            self.assertIsInstance(obs, dict)
+            self.assertIsInstance(infos, dict)
+            self.assertEqual(env.num_agents, 2)
+            self.assertTrue(set(env.agents) <= set(obs) and set(env.agents) <= set(infos))
+            live, finished = set(env.agents), set()
+            for _ in range(1000):
+                actions = {a: env.action_space(a).sample() for a in env.agents}
+                obs, rewards, terminated, truncated, infos = env.step(actions)
+                for a in env.agents:
+                    self.assertNotIn(a, finished, "agent revived")
+                for part in (obs, rewards, terminated, truncated, infos):
+                    self.assertIsInstance(part, dict)
+                    self.assertEqual(set(part), live)  # no entry missing for a live agent, none for a dead one
+                self.assertTrue(set(env.agents) <= set(env.possible_agents))
+                done = {a for a in live if terminated[a] or truncated[a]}
+                finished |= done
+                live -= done
+                self.assertEqual(set(env.agents), live)
+                if not live:
+                    break
+            self.assertEqual(finished, set(env.possible_agents))
+        env.close()
+
+    def test_parallel_env_same_seed_same_everything(self):
+        """PettingZoo's parallel_seed_test: two envs reset with the same seed and given the same actions return
+        equivalent observations, rewards, terminations, truncations and infos."""
+        envs = [SceneStreamerParallelEnv(self.server.target, num_agents=2, max_steps=3, reward=NO_ENDING)
+                for _ in range(2)]
+        results = [[], []]
+        for env, out in zip(envs, results):
+            out.append(env.reset(seed=42))
+            for a in env.possible_agents:
+                env.action_space(a).seed(7)
+            while env.agents:
+                out.append(env.step({a: env.action_space(a).sample() for a in env.agents}))
+        self.assertNotEqual(envs[0].session_id, envs[1].session_id)
+        self.assertEqual(len(results[0]), 4)
+        self.assertEqual(len(results[0]), len(results[1]))
+        for k, (x, y) in enumerate(zip(*results)):
+            for part, (u, v) in enumerate(zip(x, y)):
+                self.assertTrue(equivalent(u, v), f"step {k}, part {part}: {u!r} != {v!r}")
+        for env in envs:
+            env.close()
 
 
 def find(tick, agent_id):
