@@ -33,6 +33,7 @@ RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSCENESTREAM
 FROM build AS share
 COPY data/ /src/data/
 COPY models/ /src/models/
+COPY docs/model.md /src/docs/model.md
 RUN DESTDIR=/install cmake --install build --prefix /usr/local --component share
 
 # ---- the image: run-time libraries, the installed tree (two binaries, the bundled model and scenarios) ----

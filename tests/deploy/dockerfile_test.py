@@ -100,9 +100,10 @@ class DockerfileTest(unittest.TestCase):
         share = dict()
         for ins, args in self.stages[1][1]:
             share.setdefault(ins, []).append(args)
-        self.assertEqual(sorted(share["COPY"]), ["data/ /src/data/", "models/ /src/models/"])
+        self.assertEqual(sorted(share["COPY"]),
+                         ["data/ /src/data/", "docs/model.md /src/docs/model.md", "models/ /src/models/"])
         self.assertEqual(share["RUN"], ["DESTDIR=/install cmake --install build --prefix /usr/local --component share"])
-        self.assertRegex(read("CMakeLists.txt"), r"install\(FILES models/default.safetensors DESTINATION "
+        self.assertRegex(read("CMakeLists.txt"), r"install\(FILES models/default.safetensors docs/model.md DESTINATION "
                                                  r"share/scenestreamer/models COMPONENT share\)")
         self.assertRegex(read("CMakeLists.txt"), r"install\(DIRECTORY data/ DESTINATION share/scenestreamer/data "
                                                  r"COMPONENT share\)")

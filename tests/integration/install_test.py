@@ -92,8 +92,11 @@ class InstallTest(unittest.TestCase):
             model = f.read()
         with open(os.path.join(self.share, "models", "default.safetensors"), "rb") as f:
             self.assertEqual(f.read(), model)
-        if os.path.exists(os.path.join(SOURCE, "models", "MODEL_CARD.md")):
-            self.assertTrue(os.path.isfile(os.path.join(self.share, "models", "MODEL_CARD.md")))
+        # The model card (docs/model.md) beside the model.
+        with open(os.path.join(SOURCE, "docs", "model.md")) as f:
+            card = f.read()
+        with open(os.path.join(self.share, "models", "model.md")) as f:
+            self.assertEqual(f.read(), card)
         self.assertEqual(sorted(os.listdir(os.path.join(self.share, "data"))),
                          sorted(os.listdir(os.path.join(SOURCE, "data"))))
         # Nothing of the development tree: no training checkpoint, no build or test files.
