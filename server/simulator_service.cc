@@ -44,14 +44,14 @@ absl::StatusOr<std::string> proposed_session_id(const ::grpc::ServerContext& ctx
 
 }  // namespace
 
-Clock::time_point SimulatorService::deadline(const Ctx* ctx) const {
-  // gRPC's deadline is on the system clock; engine waits use the steady clock.
+TimePoint SimulatorService::deadline(const Ctx* ctx) const {
+  // gRPC's deadline is on the system clock; the session manager's waits are on its own (steady) clock.
   const auto d = ctx->deadline();
   const auto now_sys = std::chrono::system_clock::now();
-  const auto fallback = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                           std::chrono::duration<double>(default_deadline_s_));
+  const TimePoint now = sessions_.clock().now();
+  const auto fallback = now + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(default_deadline_s_));
   if (d == std::chrono::system_clock::time_point::max() || d - now_sys > std::chrono::hours(24)) return fallback;
-  return Clock::now() + std::chrono::duration_cast<Clock::duration>(d - now_sys);
+  return now + std::chrono::duration_cast<Duration>(d - now_sys);
 }
 
 ::grpc::Status SimulatorService::finish(const char* method, const std::string& session, const absl::Status& st) {

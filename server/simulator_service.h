@@ -39,7 +39,7 @@ class SimulatorService final
   int in_flight() const { return in_flight_; }
 
  private:
-  Clock::time_point deadline(const Ctx* ctx) const;
+  TimePoint deadline(const Ctx* ctx) const;
   ::grpc::Status finish(const char* method, const std::string& session, const absl::Status& st);
 
   Engine& engine_;

@@ -1,5 +1,6 @@
 // The session manager against the real engine on a tiny configuration (small random weights, the real WOMD
 // TFRecords read in place from ../shared): caps, LRU eviction order, the multi-client barrier, ids, status mapping.
+// Time is a TestClock where it matters (idle timeouts, tick deadlines, purge intervals): no test sleeps on wall time.
 #include "server/session_manager.h"
 
 #include <gtest/gtest.h>
@@ -30,7 +31,8 @@ class ManagerTest : public ::testing::Test {
     EngineDeleter()(engine_);
     delete name_;
   }
-  static Clock::time_point soon() { return Clock::now() + std::chrono::seconds(120); }
+  // A deadline no test reaches: the test clocks start at the real clock's now and are advanced by seconds at most.
+  static TimePoint soon() { return std::chrono::steady_clock::now() + std::chrono::seconds(120); }
   absl::StatusOr<std::string> create(SessionManager& m, const std::string& id, SessionOptions o = {}) {
     std::string out;
     auto t = m.create("", {*name_, ""}, o, 0, id, soon(), &out);
@@ -96,7 +98,7 @@ TEST_F(ManagerTest, TheComputeQueueGaugeCountsCallsWaitingForAComputeThread) {
   int most = 0;
   while (!long_done && most < 1) {
     most = std::max(most, m.compute_queued());
-    std::this_thread::sleep_for(std::chrono::microseconds(50));
+    std::this_thread::yield();
   }
   long_call.join();
   short_call.join();
@@ -108,7 +110,7 @@ TEST_F(ManagerTest, TheComputeQueueGaugeCountsCallsWaitingForAComputeThread) {
 }
 
 // The reaper gives freed memory back to the kernel once sessions closed, at most every --malloc_trim_s, and not while
-// nothing closes (issue 13; server/allocator.h).
+// nothing closes (server/allocator.h). The test drives the clock and the reaper's passes.
 TEST_F(ManagerTest, TheReaperTrimsMallocAfterSessionsCloseOnly) {
   auto trims = [&] {
     const std::string text = metrics_.render();
@@ -116,24 +118,39 @@ TEST_F(ManagerTest, TheReaperTrimsMallocAfterSessionsCloseOnly) {
     const size_t at = text.find(key);
     return at == std::string::npos ? -1.0 : std::stod(text.substr(at + key.size()));
   };
+  TestClock clock;
   ManagerOptions o;
   o.malloc_trim_interval_s = 0.2;
+  o.clock = &clock;
+  o.reaper_thread = false;
   SessionManager m(*engine_, o, metrics_);
   ASSERT_TRUE(create(m, "a").ok());
   ASSERT_TRUE(create(m, "b").ok());
   ASSERT_TRUE(m.step("a", "", "", {}, 2, soon()).ok());
-  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  clock.advance(std::chrono::milliseconds(600));
+  m.reap();
   EXPECT_EQ(trims(), 0) << "a trim with no session closed";
   ASSERT_TRUE(m.close("a", "").ok());
   ASSERT_TRUE(m.close("b", "").ok());
-  for (int i = 0; i < 50 && trims() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  // The reaper may wake between the two closes and trim after each (seen in CI): two intervals later both are done.
-  std::this_thread::sleep_for(std::chrono::milliseconds(400));
-  const double after_closes = trims();
-  EXPECT_GE(after_closes, 1);
-  EXPECT_LE(after_closes, 2);
-  std::this_thread::sleep_for(std::chrono::milliseconds(600));
-  EXPECT_EQ(trims(), after_closes) << "trims again with nothing closed since";
+  m.reap();
+  EXPECT_EQ(trims(), 1) << "one purge for both closes";
+  clock.advance(std::chrono::milliseconds(600));
+  m.reap();
+  EXPECT_EQ(trims(), 1) << "trims again with nothing closed since";
+  // A close within the interval of the last purge waits for the interval.
+  m.reap();
+  ASSERT_TRUE(create(m, "c").ok());
+  ASSERT_TRUE(m.close("c", "").ok());
+  m.reap();  // 600 ms after the last purge: due
+  EXPECT_EQ(trims(), 2);
+  ASSERT_TRUE(create(m, "d").ok());
+  ASSERT_TRUE(m.close("d", "").ok());
+  clock.advance(std::chrono::milliseconds(100));
+  m.reap();
+  EXPECT_EQ(trims(), 2) << "a purge 100 ms after the last one, under --malloc_trim_s=0.2";
+  clock.advance(std::chrono::milliseconds(150));
+  m.reap();
+  EXPECT_EQ(trims(), 3);
 }
 
 TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
@@ -144,10 +161,16 @@ TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
   o.evict_idle_s = 0;
   o.snapshot_dir = dir.string();
   o.snapshot_interval_s = 0;
+  TestClock clock;  // each use at its own time, so the LRU order is not a tie of equal time stamps
+  o.clock = &clock;
+  o.reaper_thread = false;
   SessionManager m(*engine_, o, metrics_);
   ASSERT_TRUE(create(m, "old").ok());
+  clock.advance(std::chrono::milliseconds(1));
   ASSERT_TRUE(create(m, "recent").ok());
+  clock.advance(std::chrono::milliseconds(1));
   ASSERT_TRUE(m.step("old", "", "", {}, 1, soon()).ok());  // "old" is now the more recently used
+  clock.advance(std::chrono::milliseconds(1));
   ASSERT_TRUE(create(m, "new").ok());
   std::vector<std::string> held;
   for (const SessionInfo& i : m.list("")) held.push_back(i.id);
@@ -165,6 +188,9 @@ TEST_F(ManagerTest, EvictionTakesTheLeastRecentlyUsedIdleSession) {
 TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTick) {
   ManagerOptions o;
   o.evict_idle_s = 1000;
+  TestClock clock;  // never advanced: only both poses can make the tick
+  o.clock = &clock;
+  o.reaper_thread = false;
   SessionManager m(*engine_, o, metrics_);
   std::vector<AgentView> two;
   auto created = create_two_controllers(m, 60000, two);
@@ -172,13 +198,15 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
   const std::string multi = *created;
   std::vector<absl::StatusOr<std::vector<TickView>>> got(2, absl::UnknownError("not run"));
   std::vector<std::thread> clients;
-  for (int k = 0; k < 2; ++k)
-    clients.emplace_back([&, k] {
-      const AgentView& a = two[k];
-      ControlInput c{a.id, a.state.x + 0.5 * a.state.vx, a.state.y + 0.5 * a.state.vy, a.state.heading, {}};
-      if (k == 1) std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the late one
-      got[k] = m.step(multi, "", "", {c}, 1, soon());
-    });
+  auto client = [&](int k) {
+    const AgentView& a = two[k];
+    ControlInput c{a.id, a.state.x + 0.5 * a.state.vx, a.state.y + 0.5 * a.state.vy, a.state.heading, {}};
+    got[k] = m.step(multi, "", "", {c}, 1, soon());
+  };
+  clients.emplace_back(client, 0);
+  ASSERT_TRUE(clock.await_waiters(1)) << "the first client's call did not wait for the second";
+  EXPECT_EQ(got[0].status().code(), absl::StatusCode::kUnknown) << "returned before the second pose";
+  clients.emplace_back(client, 1);  // the late one
   for (auto& c : clients) c.join();
   ASSERT_TRUE(got[0].ok()) << got[0].status();
   ASSERT_TRUE(got[1].ok()) << got[1].status();
@@ -195,22 +223,39 @@ TEST_F(ManagerTest, AMultiClientTickWaitsForEveryControllerAndGivesAllTheSameTic
 // A call that waits is use: under load a call once waited longer than --idle_timeout_s for a compute thread and the
 // idle rule closed its session under it. Here the wait is a multi-client tick's for its second controller.
 TEST_F(ManagerTest, ASessionWithACallWaitingIsNotIdle) {
+  TestClock clock;
   ManagerOptions o;
   o.idle_timeout_s = 0.5;
+  o.clock = &clock;
+  o.reaper_thread = false;
   SessionManager m(*engine_, o, metrics_);
   std::vector<AgentView> two;
   auto created = create_two_controllers(m, 2500, two);  // the tick waits up to 2.5 s for both
   ASSERT_TRUE(created.ok()) << created.status();
   const std::string multi = *created;
   const AgentView& a = two[0];
-  const auto start = Clock::now();
-  auto got = m.step(multi, "", "", {ControlInput{a.id, a.state.x, a.state.y, a.state.heading, 0.0}}, 1, soon());
+  std::atomic<bool> returned{false};
+  absl::StatusOr<std::vector<TickView>> got = absl::UnknownError("not run");
+  std::thread call([&] {
+    got = m.step(multi, "", "", {ControlInput{a.id, a.state.x, a.state.y, a.state.heading, 0.0}}, 1, soon());
+    returned = true;
+  });
+  ASSERT_TRUE(clock.await_waiters(1));
+  clock.advance(std::chrono::seconds(1));
+  ASSERT_TRUE(clock.await_waits(clock.waits() + 1));  // the call saw 1 s pass and waits on
+  EXPECT_FALSE(returned) << "the tick ran before its deadline with one of two poses";
+  m.reap();
+  EXPECT_EQ(m.count(), 1) << "the probe session (idle 1 s) is closed, the one with a waiting call is not";
+  clock.advance(std::chrono::milliseconds(1500));  // the tick deadline
+  call.join();
   ASSERT_TRUE(got.ok()) << got.status();  // made at the tick deadline with one controller's pose, not closed
-  EXPECT_GE(Clock::now() - start, std::chrono::milliseconds(2000));
   EXPECT_EQ((*got)[0].tick, 1);
   EXPECT_TRUE(m.get(multi, "").ok());
+  m.reap();
+  EXPECT_EQ(m.count(), 1) << "just used";
   // Unused afterwards (count() does not use a session), it is closed by the same rule.
-  for (int i = 0; i < 30 && m.count() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  clock.advance(std::chrono::milliseconds(600));
+  m.reap();
   EXPECT_EQ(m.count(), 0);
 }
 
