@@ -224,7 +224,12 @@ int eval_main(int argc, char** argv) {
   if (scenarios->empty()) return fail(absl::StrCat("no scenarios found in ", paths[0], paths.size() > 1 ? " ..." : ""));
   std::vector<std::shared_ptr<const Scenario>> all;
   int history_only = 0;  // scenarios that end at their current frame (the challenge's test set)
+  std::vector<std::string> no_ego;  // --ego: scenarios with no SDC valid at the current frame, left out
   for (Scenario& s : *scenarios) {
+    if (options.ego && (s.sdc_track_index < 0 || !s.tracks[s.sdc_track_index].states[s.current_time_index].valid)) {
+      no_ego.push_back(s.id);
+      continue;
+    }
     if (write_submission && s.num_frames() == s.current_time_index + 1) {
       s = with_empty_future(s, kChallengeFutureFrames);
       ++history_only;
@@ -232,6 +237,10 @@ int eval_main(int argc, char** argv) {
     all.push_back(std::make_shared<const Scenario>(std::move(s)));
   }
   scenarios->clear();
+  if (!no_ego.empty())
+    spdlog::warn("eval: --ego: {} scenario(s) name no SDC valid at the current frame and are left out (e.g. {})",
+                 no_ego.size(), no_ego[0]);
+  if (all.empty()) return fail("--ego: no scenario names an SDC to drive");
 
   // --submission: each log's rollouts, matched by scenario id in both directions.
   std::vector<const ScenarioRollouts*> submitted(all.size(), nullptr);
@@ -335,6 +344,7 @@ int eval_main(int argc, char** argv) {
   run.top_p = options.session.top_p, run.temperature = options.session.temperature;
   run.motion_reject = options.session.motion_reject;
   run.ego = options.ego;
+  run.no_ego = static_cast<int>(no_ego.size());
   const std::string json = json_text(eval_json(run, d, evaluations)) + "\n";
   const std::string out = absl::GetFlag(FLAGS_eval_json);
   if (out == "-") {

@@ -16,7 +16,9 @@ ABSL_FLAG(std::string, out, "", "where to write");
 ABSL_FLAG(int, index, 0, "the file's I-th scenario, from 0");
 ABSL_FLAG(std::string, mode, "motion",
           "motion: the model moves the log's agents; full: the model creates the agents itself, and new ones may "
-          "enter; densify: the log's agents and new ones up to --densify-target (simulate only)");
+          "enter; densify: the log's agents and new ones up to --densify-target (simulate only); log: the baseline "
+          "that replays the log (non-reactive); idm: the baseline whose vehicles follow their logged path with "
+          "Intelligent Driver Model speed control (engine/sim/rule_agents.h)");
 ABSL_FLAG(std::string, sdc, "model",
           "model: the model drives the SDC like every other agent (WOSAC's rule); log: the SDC follows its logged "
           "poses, as an RL client's ego would");

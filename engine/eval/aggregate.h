@@ -35,7 +35,7 @@ struct DatasetEvaluation {
   PlacedAgents placed_log, placed_generated;
   int placed_within_30 = 0, placed_scenarios = 0;
   // Over those scenarios, the Pearson correlation of the generated count (mean over rollouts) with the log's: whether
-  // the model places more where the log has more (MODEL_CARD.md: the map predicts the count only so far). NaN with
+  // the model places more where the log has more (docs/model.md: the map predicts the count only so far). NaN with
   // fewer than 3 scenarios or no spread.
   double placed_count_correlation = std::numeric_limits<double>::quiet_NaN();
   std::array<FeatureHistogram, kNumRealismFeatures> histograms;  // summed

@@ -210,7 +210,9 @@ EgoOutcome ego_outcome(const std::vector<StepResult>& steps, int64_t ego_id, boo
   EgoOutcome out;
   out.steps = static_cast<int>(steps.size()) - 1;
   out.off_road = ego_off_road;
-  std::set<int64_t> seen, collided;
+  // An overlap counts when it begins between two agents both present at the step before: an agent the log brings in
+  // already overlapping another (rule modes add agents as the log has them) did not run into it.
+  std::set<int64_t> seen, collided, present_before;
   std::set<std::pair<int64_t, int64_t>> before;  // background pairs overlapping at the previous step
   std::set<int64_t> ego_before;                 // agents overlapping the ego at the previous step
   for (size_t k = 0; k < steps.size(); ++k) {
@@ -226,7 +228,7 @@ EgoOutcome ego_outcome(const std::vector<StepResult>& steps, int64_t ego_id, boo
       seen.insert(a.id);
       if (ego && may_touch(ego->state, a.state) && boxes_overlap(box_of(ego->state), box_of(a.state))) {
         ego_now.insert(a.id);
-        if (k > 0 && !ego_before.count(a.id) && out.collision == EgoCollision::none) {
+        if (k > 0 && present_before.count(a.id) && !ego_before.count(a.id) && out.collision == EgoCollision::none) {
           out.collision = classify_ego_collision(ego->state, a.state);
           out.collision_step = steps[k].step;
           out.collision_with = a.id;
@@ -237,11 +239,14 @@ EgoOutcome ego_outcome(const std::vector<StepResult>& steps, int64_t ego_id, boo
         if (b.id == ego_id || !may_touch(a.state, b.state) || !boxes_overlap(box_of(a.state), box_of(b.state))) continue;
         const auto key = std::minmax(a.id, b.id);
         pairs.insert(key);
-        if (k > 0 && !before.count(key)) collided.insert(a.id), collided.insert(b.id);
+        if (k > 0 && !before.count(key) && present_before.count(a.id) && present_before.count(b.id))
+          collided.insert(a.id), collided.insert(b.id);
       }
     }
     before = std::move(pairs);
     ego_before = std::move(ego_now);
+    present_before.clear();
+    for (const AgentView& a : agents) present_before.insert(a.id);
   }
   out.background_agents = static_cast<int>(seen.size());
   out.background_collided = static_cast<int>(collided.size());

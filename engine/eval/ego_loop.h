@@ -59,7 +59,8 @@ enum class EgoCollision { none, rear_end, ego_at_fault, side };
 const char* ego_collision_name(EgoCollision c);
 EgoCollision classify_ego_collision(const StepState& ego, const StepState& other);
 
-// One episode's outcome. Overlaps present at the first step are not collisions (the log has them too).
+// One episode's outcome. An overlap is a collision when it begins between two agents that were both present, apart,
+// at the step before: overlaps at the first step, and agents that enter overlapping (the log has both), are not.
 struct EgoOutcome {
   int steps = 0;
   EgoCollision collision = EgoCollision::none;  // the episode's first ego collision

@@ -187,6 +187,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
         g.off_road += e.off_road;
         g.background_collision_rate +=
             e.background_agents ? static_cast<double>(e.background_collided) / e.background_agents : 0.0;
+        g.outcomes.push_back(e);
       } else {
         steps = run_model_rollout(model, scenario, *context, o, options.sdc);
       }

@@ -45,6 +45,7 @@ struct EgoSummary {
   int off_road = 0;                        // episodes in which the ego left the road
   double background_collision_rate = 0;    // mean over episodes of the share of background agents that collided
                                            // with another background agent
+  std::vector<EgoOutcome> outcomes;        // each episode's, in rollout order
 };
 
 // Realism per window of the simulated future, so the drift of a long rollout shows: 0-8 s, 8-16 s, 16 s to the end

@@ -46,18 +46,14 @@ Pose path_pose(const LoggedPath& path, double s) {
   const auto along = [](Vec2 p, double heading, double d) {
     return Pose{p.x + d * std::cos(heading), p.y + d * std::sin(heading), heading};
   };
-  if (n == 1) return along(path.points[0], path.heading[0], s);
-  const auto direction = [&](size_t i) {  // of segment i -> i + 1
-    const Vec2 d = path.points[i + 1] - path.points[i];
-    return std::atan2(d.y, d.x);
-  };
-  if (s <= 0) return along(path.points[0], direction(0), s);
-  if (s >= path.s.back()) return along(path.points[n - 1], direction(n - 2), s - path.s.back());
+  // Headings are the log's, interpolated: a segment's own direction is noise where the logged vehicle creeps (a few
+  // centimetres between frames), and a box turned by that noise sweeps the neighbouring lane or the kerb.
+  if (s <= 0) return along(path.points[0], path.heading[0], s);
+  if (s >= path.s.back()) return along(path.points[n - 1], path.heading[n - 1], s - path.s.back());
   const size_t i = static_cast<size_t>(std::upper_bound(path.s.begin(), path.s.end(), s) - path.s.begin()) - 1;
   const double t = (s - path.s[i]) / (path.s[i + 1] - path.s[i]);
   const Vec2 p = path.points[i] + t * (path.points[i + 1] - path.points[i]);
-  // The travel direction, not the logged heading: a box turned off its path would sweep the neighbouring lane.
-  return {p.x, p.y, direction(i)};
+  return {p.x, p.y, wrap_angle(path.heading[i] + t * wrap_angle(path.heading[i + 1] - path.heading[i]))};
 }
 
 double path_s_at_frame(const LoggedPath& path, int frame) {

@@ -46,6 +46,16 @@ constexpr double kPlacementTemperature = 1.0;
 constexpr double kMaxStepDistance = 50.0;   // metres in one 0.5 s step (100 m/s): more is a teleport (StateForce)
 constexpr double kMaxSpeed = 100.0;         // m/s
 constexpr double kRejectBrake = 6.0;        // m/s^2: the braking motion reject sampling leaves room for
+// m/s^2: how hard an agent ahead may brake (RSS's a_max_brake), and how hard a controlled agent may brake before its
+// next pose arrives: the reject sampler keeps a follower's room to stop behind either.
+constexpr double kLeaderBrake = 8.0;
+// Steps (3 s) over which a control must not bring an agent, moving on at its new velocity, into a controlled agent
+// that repeats its last control or speeds up at kYieldAccel, on the same turn or kYieldTurn to either side: where their
+// paths may cross that soon,
+// the agent yields (a controlled agent's caller may not yield, and at a stop it may move off at any moment).
+constexpr int kYieldSteps = 6;
+constexpr double kYieldAccel = 2.0;  // m/s^2
+constexpr double kYieldTurn = 0.4;   // rad/s: ... or turning this much more to either side (a turn at an intersection)
 constexpr double kRejectTopP = 0.99999;     // a redraw's controls: all but the least likely 0.001 % of the mass
 constexpr int kCentreToken = kMotionBins / 2 * kMotionBins + kMotionBins / 2;  // zero acceleration, zero yaw rate
 
@@ -173,7 +183,10 @@ void Session::sample_motions(const Mat& h) {
 // to the controls with no fault (sample_token_if over kRejectTopP of the mass, not only the top-p nucleus: braking
 // hard is often outside it; all 1,089 controls made eval 1.6x slower for realism within noise), else with fault 1
 // only, else faults 1-2; if none passes, it keeps its draw. Agents are visited in order, each checking against the
-// others' latest choices (a controlled agent: its last control repeated, the best guess of the caller's next pose).
+// others' latest choices. A controlled agent's next pose is unknown: it is taken both as its last control repeated
+// and as braking at kLeaderBrake from now, and a control must clear both. Fault 1 also holds RSS's safe longitudinal
+// distance (response time 0: the follower chooses again at the next step) toward every agent ahead of it: braking at
+// kRejectBrake, it stops short of where the leader stops braking at kLeaderBrake.
 void Session::reject_motion_faults(const std::function<std::span<const float>(size_t)>& row) {
   struct Next {
     Box box;        // at the next step
@@ -213,6 +226,10 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   };
   std::vector<Box> now(n);
   std::vector<Next> next(n);
+  std::vector<std::optional<Next>> braked(n);  // controlled agents: their next step braking at kLeaderBrake
+  // Controlled agents: their boxes over kYieldSteps steps, last control repeated (course[j][0] is next[j].box), and
+  // speeding up at kYieldAccel.
+  std::vector<std::vector<std::vector<Box>>> courses(n);
   std::vector<double> reach(n);     // no point of the agent's box, braking or not, gets farther from its centre now
   std::vector<int8_t> keep_road(n, -1);  // a vehicle (type 0) on the road now: 1 yes, 0 no, -1 not asked yet
   std::vector<double> edge_d(n);          // signed distance of its centre now to the road edge, once asked
@@ -220,6 +237,27 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     const Agent& a = agents_[i];
     now[i] = box_of(a.state);
     next[i] = next_of(a, a.controlled ? a.last_motion : a.next_motion);
+    if (a.controlled) {
+      const double v = std::max(0.0, a.kin.speed), t = std::min(kStepSeconds, v / kLeaderBrake);
+      const double d = v * t - kLeaderBrake * t * t / 2, v1 = v - kLeaderBrake * t;
+      const Vec2 u{std::cos(a.kin.heading), std::sin(a.kin.heading)};
+      Next b{box_of(a.state), box_of(a.state), v1 * u, v1};
+      b.box.pose.x += d * u.x, b.box.pose.y += d * u.y;
+      b.mid.pose.x += d / 2 * u.x, b.mid.pose.y += d / 2 * u.y;
+      braked[i] = b;
+      const int token = a.last_motion < 0 || a.last_motion == kMotionStart ? kCentreToken : a.last_motion;
+      const double w = motion_yaw_rate(token);
+      courses[i].resize(4);
+      KinematicState k = a.kin, f[3] = {a.kin, a.kin, a.kin};
+      for (int h = 0; h < kYieldSteps; ++h) {
+        k = apply_motion_token(k, token);
+        courses[i][0].push_back(box_of(state_from_kin(k, a.state)));
+        for (int c = 0; c < 3; ++c) {
+          f[c] = bicycle_step(f[c], kYieldAccel, w + (c - 1) * kYieldTurn);
+          courses[i][c + 1].push_back(box_of(state_from_kin(f[c], a.state)));
+        }
+      }
+    }
     const double v = std::abs(a.kin.speed) + kMaxAccel * kStepSeconds;
     reach[i] = norm({a.state.length, a.state.width}) / 2 + v * kStepSeconds + v * v / (2 * kRejectBrake);
   }
@@ -236,15 +274,42 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   // level 0 also that they clear them while both brake to a stop; levels 0 and 1 that a vehicle on the road stays
   // on it (the road is looked at last, and only when it can decide: its queries cost the most).
   const auto clears_others = [&](const Next& c) {
-    for (size_t j : near)
+    for (size_t j : near) {
       if (boxes_overlap(c.box, next[j].box) || boxes_overlap(c.mid, next[j].mid)) return false;
+      if (braked[j] && (boxes_overlap(c.box, braked[j]->box) || boxes_overlap(c.mid, braked[j]->mid))) return false;
+    }
     return true;
   };
-  const auto clears_braking = [&](const Next& c) {
+  const auto clears_braking = [&](size_t i, const Next& c) {
     const double t_stop = std::abs(c.speed) / kRejectBrake;
     const Box stopped = moved(c.box, (t_stop / 2) * c.velocity);
-    for (size_t j : near)
+    const Vec2 ahead{std::cos(now[i].pose.heading), std::sin(now[i].pose.heading)};
+    const auto leader_stops_clear = [&](const Next& l) {
+      const double t = std::abs(l.speed) / kLeaderBrake;
+      return !boxes_overlap(stopped, moved(l.box, (t / 2) * l.velocity));
+    };
+    // Where this agent stops braking at kLeaderBrake: a controlled agent behind it must have room to stop short of
+    // it, as its caller may not react (the agents the model drives get that room from their own test).
+    const double t_lead = std::abs(c.speed) / kLeaderBrake;
+    const Box stopped_as_leader = moved(c.box, (t_lead / 2) * c.velocity);
+    for (size_t j : near) {
       if (boxes_overlap(stopped, moved(next[j].box, t_stop * next[j].velocity))) return false;
+      const Vec2 to_j{now[j].pose.x - now[i].pose.x, now[j].pose.y - now[i].pose.y};
+      if (braked[j] && dot(to_j, Vec2{std::cos(now[j].pose.heading), std::sin(now[j].pose.heading)}) < 0) {
+        const double t_follow = std::abs(next[j].speed) / kRejectBrake;
+        if (boxes_overlap(stopped_as_leader, moved(next[j].box, (t_follow / 2) * next[j].velocity))) return false;
+      }
+      if (braked[j]) {
+        Box b = c.box;
+        for (int h = 1; h < kYieldSteps; ++h) {
+          b = moved(b, kStepSeconds * c.velocity);
+          for (const std::vector<Box>& course : courses[j])
+            if (boxes_overlap(b, course[h])) return false;
+        }
+      }
+      if (dot(to_j, ahead) <= 0) continue;
+      if (!leader_stops_clear(next[j]) || (braked[j] && !leader_stops_clear(*braked[j]))) return false;
+    }
     return true;
   };
   const auto keeps_road = [&](size_t i, const Next& c) {
@@ -276,7 +341,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     if (k.clear < 0) k.clear = clears_others(k.next);
     if (!k.clear) return false;
     if (level < 1) {
-      if (k.braking < 0) k.braking = clears_braking(k.next);
+      if (k.braking < 0) k.braking = clears_braking(i, k.next);
       if (!k.braking) return false;
     }
     if (level >= 2) return true;
@@ -287,7 +352,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     Agent& a = agents_[i];
     if (a.controlled) continue;
     find_near(i);
-    if (clears_others(next[i]) && clears_braking(next[i]) && keeps_road(i, next[i])) continue;
+    if (clears_others(next[i]) && clears_braking(i, next[i]) && keeps_road(i, next[i])) continue;
     int token = -1;
     for (int level = 0; level < 3 && token < 0; ++level)
       token = sample_token_if(row(i), options_.temperature, kRejectTopP, rng_,

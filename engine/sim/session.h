@@ -1,5 +1,5 @@
 // A simulation session: one scenario's map, its agents and lights, the decoder's KV cache, the RNG and the tick
-// clock, stepped at 2 Hz and ticked at 2 or 10 Hz. Hosts reach it through engine/scenestreamer.h. Every mode of the paper is a Session option (DESIGN.md section 1). Sessions are not thread-safe: callers
+// clock, stepped at 2 Hz and ticked at 2 or 10 Hz. Hosts reach it through engine/scenestreamer.h. Every mode is a Session option (docs/design.md, section 6). Sessions are not thread-safe: callers
 // serialise calls on one session; different sessions run in parallel (the Model and MapContext are shared read-only).
 #pragma once
 

@@ -23,7 +23,7 @@ std::optional<SessionMode> session_mode_from_name(const std::string& name);
 struct SessionOptions {
   SessionMode mode = SessionMode::motion;
   uint64_t seed = 0;
-  // The defaults suit the trained default model (models/MODEL_CARD.md: a sweep on val scenarios cut collision and
+  // The defaults suit the trained default model (docs/model.md: a sweep on val scenarios cut collision and
   // offroad rates against 0.95 and 1.0, realism within noise of the best).
   double top_p = 0.8;          // motion tokens (nucleus sampling)
   double temperature = 0.7;    // motion and light tokens (a new agent's: 1.0, session.cc)

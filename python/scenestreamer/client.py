@@ -96,7 +96,7 @@ def speed_of(state):
 
 def advance(agent, action, dt=STEP_SECONDS):
     """The agent's pose after `dt` under action (acceleration m/s^2, yaw rate rad/s), by the engine's kinematic rule
-    (DESIGN.md 4): v' = max(0, v + a dt), psi' = psi + w dt, and the position advances by the mean of the old and new
+    (docs/design.md, section 5): v' = max(0, v + a dt), psi' = psi + w dt, and the position advances by the mean of the old and new
     speeds along the mean of the old and new headings. The server tokenizes the resulting motion."""
     accel, yaw_rate = float(action[0]), float(action[1])
     s = agent.state

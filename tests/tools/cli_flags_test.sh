@@ -41,7 +41,7 @@ help "$bin" init-weights -- config seed out
 help "$bin" simulate -- scenario model out mode sdc steps seed rollout index top-p temperature motion-reject max-agents densify-target
 help "$bin" bench -- json model scenario steps long-steps kv-precision matmul-precision motion-reject
 help "$bin" render -- scenario index step animate radius out
-help "$bin" eval -- data model mode rollouts seed baseline sdc json plots threads compare bootstrap wosac-submission \
+help "$bin" eval -- data model mode rollouts seed baseline sdc ego json plots threads compare bootstrap wosac-submission \
   submission-metadata submission top-p temperature motion-reject
 help "$bin" dataset sumo -- out scenarios seed networks radius map-radius workers warmup record egos-per-window \
   shard-size sumo-bin sumo-home python tmp keep-temp first-job quiet

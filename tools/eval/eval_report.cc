@@ -97,7 +97,10 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
   j["sdc_rule"] = sdc_rule_text(run.sdc);
   if (!run.model_path.empty()) j["model"] = run.model_path;
   j["ego"] = run.ego ? json(ego_policy_name(*run.ego)) : json(nullptr);
-  if (d.has_ego) j["ego_outcome"] = ego_json(d.ego);
+  if (d.has_ego) {
+    j["ego_outcome"] = ego_json(d.ego);
+    j["ego_outcome"]["scenarios_without_sdc_left_out"] = run.no_ego;
+  }
   if (run.policy == EvalPolicy::model) j["sampling"] = {{"top_p", run.top_p}, {"temperature", run.temperature}, {"motion_reject", run.motion_reject}};
   put_realism(j, d.realism);
   std::vector<RealismScores> windows;
@@ -155,7 +158,16 @@ json eval_json(const EvalRunInfo& run, const DatasetEvaluation& d, std::span<con
     o["tracks_to_predict"] = ttp;
     if (run.policy == EvalPolicy::model) o["model_driven_share"] = 1 - s.filled_share;
     o["windows"] = windows_json(s.windows);
-    if (s.has_ego) o["ego_outcome"] = ego_json(s.ego);
+    if (s.has_ego) {
+      o["ego_outcome"] = ego_json(s.ego);
+      json episodes = json::array();
+      for (const EgoOutcome& e : s.ego.outcomes)
+        episodes.push_back({{"collision", ego_collision_name(e.collision)},
+                            {"collision_step", e.collision_step >= 0 ? json(e.collision_step) : json(nullptr)},
+                            {"collision_with", e.collision_with >= 0 ? json(e.collision_with) : json(nullptr)},
+                            {"off_road", e.off_road}});
+      o["ego_episodes"] = episodes;
+    }
     if (s.has_mmd) {
       o["mmd"] = {{"strict", mmd_json(s.mmd_strict)}, {"relaxed", mmd_json(s.mmd_relaxed)}};
       o["placed_agents"] = {{"log", placed_json(s.placed_log, 1)},
@@ -222,6 +234,7 @@ std::string eval_table(const EvalRunInfo& run, const DatasetEvaluation& d) {
     const auto share = [&](int k) { return absl::StrFormat("%s (%d of %d)", fmt(e.episodes ? double(k) / e.episodes : NAN, 3), k, e.episodes); };
     absl::StrAppendFormat(&t, "\n  ego --ego %s: episodes with an ego collision %s\n", ego_policy_name(*run.ego),
                           share(e.collided));
+    if (run.no_ego) absl::StrAppendFormat(&t, "    (%d scenario(s) without an SDC left out)\n", run.no_ego);
     absl::StrAppendFormat(&t, "    rear-end (another ran into it from behind) %s; ego at fault %s; side or crossing %s\n",
                           share(e.rear_end), share(e.ego_at_fault), share(e.side));
     absl::StrAppendFormat(&t, "    the background's fault (rear-end + side) %s; ego off road %s\n",

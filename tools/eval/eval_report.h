@@ -20,6 +20,7 @@ struct EvalRunInfo {
   double top_p = 0, temperature = 0;  // the model's sampling
   bool motion_reject = true;           // reject sampling of motion (SessionOptions::motion_reject)
   std::optional<EgoPolicy> ego;        // the closed-loop ego benchmark's policy
+  int no_ego = 0;                      // --ego: scenarios left out for naming no SDC
   std::string model_path;  // empty for the baselines
 };
 
