@@ -131,6 +131,28 @@ class RpcTest(unittest.TestCase):
         self.assertIn(b"scenestreamer_steps_total", metrics)
         self.assertIn(b"scenestreamer_step_seconds_bucket", metrics)
 
+    def test_rule_modes(self):
+        # MODE_LOG replays the log (the same ticks whatever the seed), MODE_IDM moves vehicles along their logged
+        # paths; both refuse InjectAgent with FAILED_PRECONDITION and fork like any session.
+        s = self.stub
+        runs = {}
+        for mode in (pb.MODE_LOG, pb.MODE_IDM):
+            for seed in (1, 2):
+                c = s.CreateSession(pb.CreateSessionRequest(scenario_name=self.name, seed=seed, mode=mode))
+                self.assertEqual(s.GetSession(pb.GetSessionRequest(session_id=c.session_id)).info.mode, mode)
+                runs[mode, seed] = [t.SerializeToString() for t in rollout(s, c.session_id, c.initial, 4)]
+                code, details = self.code(s.InjectAgent, pb.InjectAgentRequest(session_id=c.session_id, count=1))
+                self.assertEqual(code, C.FAILED_PRECONDITION)
+                self.assertIn("inject needs a model mode", details)
+                f = s.ForkSession(pb.ForkSessionRequest(session_id=c.session_id)).session_id
+                now = s.GetSession(pb.GetSessionRequest(session_id=c.session_id)).current
+                self.assertEqual([t.SerializeToString() for t in rollout(s, c.session_id, now, 2)],
+                                 [t.SerializeToString() for t in rollout(s, f, now, 2)])
+                s.CloseSession(pb.CloseSessionRequest(session_id=c.session_id))
+                s.CloseSession(pb.CloseSessionRequest(session_id=f))
+            self.assertEqual(runs[mode, 1], runs[mode, 2])  # deterministic: the seed does not matter
+        self.assertNotEqual(runs[pb.MODE_LOG, 1], runs[pb.MODE_IDM, 1])
+
     def test_client_sent_scenario_and_ten_hz(self):
         record = womd_records(os.path.join(DATA, sorted(os.listdir(DATA))[0]))[0]
         c = self.stub.CreateSession(pb.CreateSessionRequest(womd_scenario=record, tick_hz=10, seed=2))
