@@ -7,7 +7,7 @@
 #   bench/server_ab.sh [-r ROUNDS] [-c CLIENTS] [-s STEPS] [-d DENSIFY] LABEL=SERVER_BINARY[:ENV=VALUE] ...
 #
 # e.g. bench/server_ab.sh -r 4 A=/tmp/ab-a/build/server/scenestreamer-server C=build/server/scenestreamer-server
-# An ENV=VALUE after a colon is set for that server only (LD_PRELOAD=..., SCENESTREAMER_KV_PRECISION=fp32), except
+# An ENV=VALUE after a colon is set for that server only (LD_PRELOAD=..., MALLOC_CONF=...), except
 # LOAD_FLAGS=..., which the load generator gets for that run (LOAD_FLAGS=--no-motion-reject: sessions without reject
 # sampling; one server binary can then be compared with itself).
 # Every server runs with --threads 2, the trained default model and the real val scenarios, as in docs/performance.md.

@@ -95,6 +95,16 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
   }
   ModelOptions mo;
   mo.step_threads = options.step_threads;
+  if (!options.kv_precision.empty()) {
+    auto p = kv_precision_by_name(options.kv_precision);
+    if (!p.ok()) return absl::InvalidArgumentError(absl::StrCat("kv precision: ", p.status().message()));
+    mo.kv_precision = *p;
+  }
+  if (!options.matmul_precision.empty()) {
+    auto p = matmul_precision_by_name(options.matmul_precision);
+    if (!p.ok()) return absl::InvalidArgumentError(absl::StrCat("matmul precision: ", p.status().message()));
+    mo.matmul_precision = *p;
+  }
   auto model = Model::create(std::move(*w), mo);
   if (!model.ok()) return model.status();
   e->model = *model;

@@ -28,6 +28,10 @@ struct EngineOptions {
   int max_scenario_tracks = 1024;
   int max_map_features = 20000;
   int step_threads = 1;  // threads one session's step may use (ModelOptions::step_threads): a lone session's latency
+  // How keys and values are stored: "fp16" or "fp32"; "": fp16 (ModelOptions::kv_precision).
+  std::string kv_precision;
+  // The dense products: "bf16" (CPUs with AVX512-BF16 only) or "fp32"; "": bf16 where the CPU has it, else fp32.
+  std::string matmul_precision;
 };
 
 struct EngineScenario {
@@ -61,8 +65,8 @@ using SessionPtr = std::unique_ptr<Session, SessionDeleter>;
 absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options);
 const std::vector<EngineScenario>& engine_scenarios(const Engine& engine);
 const std::string& engine_model_name(const Engine& engine);  // the model config's name
-const char* engine_kv_precision(const Engine& engine);       // "fp16" (default) or "fp32": SCENESTREAMER_KV_PRECISION
-const char* engine_matmul_precision(const Engine& engine);   // "bf16" (default with AVX512-BF16) or "fp32": SCENESTREAMER_MATMUL_PRECISION
+const char* engine_kv_precision(const Engine& engine);       // "fp16" (default) or "fp32"
+const char* engine_matmul_precision(const Engine& engine);   // "bf16" (default with AVX512-BF16) or "fp32"
 bool engine_random_weights(const Engine& engine);
 // Number of map encodings computed so far (the rest were shared between sessions).
 int engine_map_encodes(const Engine& engine);

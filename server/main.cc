@@ -50,6 +50,11 @@ ABSL_FLAG(int, threads, 0, "Compute threads (engine calls running at once); 0: t
 ABSL_FLAG(int, step_threads, 1,
           "Threads one session's step may use (its attention shared out; same results at any count). For few "
           "sessions on many cores: a step that finds them busy runs on its own thread");
+ABSL_FLAG(std::string, kv_precision, "fp16",
+          "fp16 or fp32: how sessions store their keys and values (fp16 halves a session's memory; the math is fp32)");
+ABSL_FLAG(std::string, matmul_precision, "",
+          "bf16 or fp32: the dense products' precision (bf16 needs a CPU with AVX512-BF16); empty: bf16 where the CPU "
+          "has it, else fp32");
 ABSL_FLAG(int, max_watchers, 1024, "Cap on WatchSession streams open at once (they cost no thread each)");
 ABSL_FLAG(int, tick_deadline_ms, 2000, "Default wait of a multi-client tick for its late controllers");
 ABSL_FLAG(double, call_deadline_s, 120, "Deadline of a call whose client set none");
@@ -168,6 +173,8 @@ int main(int argc, char** argv) {
   eo.max_scenario_tracks = absl::GetFlag(FLAGS_max_scenario_tracks);
   eo.max_map_features = absl::GetFlag(FLAGS_max_map_features);
   eo.step_threads = absl::GetFlag(FLAGS_step_threads);
+  eo.kv_precision = absl::GetFlag(FLAGS_kv_precision);
+  eo.matmul_precision = absl::GetFlag(FLAGS_matmul_precision);
   auto engine = ss::engine_create(eo);
   if (!engine.ok()) {
     spdlog::critical("cannot start: {}", std::string(engine.status().message()));

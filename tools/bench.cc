@@ -23,10 +23,10 @@ ABSL_FLAG(std::string, bench_scenario, ss::kBenchScenario, "the scenario file th
 ABSL_FLAG(int, bench_steps, 30, "timed steps per agent count, at least 1");
 ABSL_FLAG(int, long_steps, 1000, "steps of the long rollout whose session memory is measured, at least 1");
 ABSL_FLAG(std::string, kv_precision, "",
-          "fp32 or fp16: how keys and values are stored; default: $SCENESTREAMER_KV_PRECISION, else fp16");
+          "fp32 or fp16: how keys and values are stored; default: fp16");
 ABSL_FLAG(std::string, matmul_precision, "",
-          "fp32 or bf16 (AVX512-BF16 CPUs): the dense products' precision; default: $SCENESTREAMER_MATMUL_PRECISION, "
-          "else bf16 where the CPU has AVX512-BF16, else fp32");
+          "fp32 or bf16 (AVX512-BF16 CPUs): the dense products' precision; default: bf16 where the CPU has "
+          "AVX512-BF16, else fp32");
 
 namespace ss::cli {
 namespace {

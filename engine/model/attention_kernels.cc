@@ -12,14 +12,6 @@
 
 namespace ss {
 
-bool kernels_forced_plain() {
-  static const bool plain = [] {
-    const char* e = std::getenv("SCENESTREAMER_AB_PLAIN_KERNELS");
-    return e != nullptr && *e != 0 && *e != '0';
-  }();
-  return plain;
-}
-
 void kernel_key_scores_plain(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                              float* scores) {
   for (int j = 0; j < m; ++j) {
@@ -227,14 +219,14 @@ bool fast_shape_h(const AttentionShape& s) { return s.heads % 4 == 0 && (s.dh ==
 
 void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
                            float* scores) {
-  if (!fast_shape_h(s) || kernels_forced_plain()) return kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
+  if (!fast_shape_h(s)) return kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
   if (s.dh == 32) return key_scores_h<32>(s, q, k, keys, m, scores);
   key_scores_h<16>(s, q, k, keys, m, scores);
 }
 
 void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
                                 float* out) {
-  if (!fast_shape_h(s) || kernels_forced_plain()) return kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
+  if (!fast_shape_h(s)) return kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
   if (s.dh == 32) return weighted_values_h<32>(s, a, v, keys, m, out);
   weighted_values_h<16>(s, a, v, keys, m, out);
 }
@@ -385,14 +377,14 @@ void kernel_weighted_values(const AttentionShape& s, const float* a, const float
 
 void kernel_key_scores_f16(const AttentionShape& s, const float* q, const uint16_t* k, const int* keys, int m,
                            float* scores) {
-  if (!fast_shape(s) || kernels_forced_plain()) return kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
+  if (!fast_shape(s)) return kernel_key_scores_f16_plain(s, q, k, keys, m, scores);
   if (s.dh == 32) return key_scores<2>(s, q, k, keys, m, scores);
   key_scores<1>(s, q, k, keys, m, scores);
 }
 
 void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const uint16_t* v, const int* keys, int m,
                                 float* out) {
-  if (!fast_shape(s) || kernels_forced_plain()) return kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
+  if (!fast_shape(s)) return kernel_weighted_values_f16_plain(s, a, v, keys, m, out);
   if (s.dh == 32) return weighted_values<2>(s, a, v, keys, m, out);
   weighted_values<1>(s, a, v, keys, m, out);
 }
@@ -401,7 +393,7 @@ void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const u
 // blocks of keys at once for eight independent sums; the last block is masked.
 void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel_t, int m, float* scores,
                             int stride) {
-  if (s.heads % 4 != 0 || kernels_forced_plain()) return kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
+  if (s.heads % 4 != 0) return kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
   const int r = s.r;
   for (int h = 0; h < s.heads; h += 4) {
     float* sh = scores + static_cast<size_t>(h) * stride;
@@ -443,7 +435,7 @@ void kernel_relation_scores(const AttentionShape& s, const float* u, const float
 // masked), reduced once at the end.
 void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                               float* out) {
-  if (s.heads % 4 != 0 || s.r % 4 != 0 || kernels_forced_plain())
+  if (s.heads % 4 != 0 || s.r % 4 != 0)
     return kernel_weighted_relation_plain(s, a, rel_t, m, stride, out);
   const int r = s.r;
   for (int h = 0; h < s.heads; h += 4) {
@@ -581,14 +573,14 @@ bool fast_shape(const AttentionShape& s) { return s.heads % 4 == 0 && (s.dh == 1
 
 void kernel_key_scores(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                        float* scores) {
-  if (!fast_shape(s) || kernels_forced_plain()) return kernel_key_scores_plain(s, q, k, keys, m, scores);
+  if (!fast_shape(s)) return kernel_key_scores_plain(s, q, k, keys, m, scores);
   if (s.dh == 32) return key_scores<32>(s, q, k, keys, m, scores);
   key_scores<16>(s, q, k, keys, m, scores);
 }
 
 void kernel_weighted_values(const AttentionShape& s, const float* a, const float* v, const int* keys, int m,
                             float* out) {
-  if (!fast_shape(s) || kernels_forced_plain()) return kernel_weighted_values_plain(s, a, v, keys, m, out);
+  if (!fast_shape(s)) return kernel_weighted_values_plain(s, a, v, keys, m, out);
   if (s.dh == 32) return weighted_values<32>(s, a, v, keys, m, out);
   weighted_values<16>(s, a, v, keys, m, out);
 }
@@ -597,7 +589,7 @@ void kernel_weighted_values(const AttentionShape& s, const float* a, const float
 // plain loop.
 void kernel_relation_scores(const AttentionShape& s, const float* u, const float* rel_t, int m, float* scores,
                             int stride) {
-  if (s.heads % 4 != 0 || kernels_forced_plain()) return kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
+  if (s.heads % 4 != 0) return kernel_relation_scores_plain(s, u, rel_t, m, scores, stride);
   const int r = s.r;
   for (int h = 0; h < s.heads; h += 4) {
     float* sh = scores + static_cast<size_t>(h) * stride;
@@ -630,7 +622,7 @@ void kernel_relation_scores(const AttentionShape& s, const float* u, const float
 
 void kernel_weighted_relation(const AttentionShape& s, const float* a, const float* rel_t, int m, int stride,
                               float* out) {
-  if (s.heads % 4 != 0 || s.r % 4 != 0 || kernels_forced_plain())
+  if (s.heads % 4 != 0 || s.r % 4 != 0)
     return kernel_weighted_relation_plain(s, a, rel_t, m, stride, out);
   const int r = s.r;
   const int whole = m - m % 8;
@@ -677,7 +669,6 @@ inline float hsum(__m256 x) {
 }  // namespace
 
 void kernel_softmax_rows(float* s, int rows, int cols, int stride, float scale, float* inv_sums) {
-  if (kernels_forced_plain()) return kernel_softmax_rows_plain(s, rows, cols, stride, scale, inv_sums);
   // Whole vectors, the last one masked (its empty lanes read as -inf, whose exp is 0): no scalar exp for a tail.
   const __m256 lowest = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
   const int full = cols / 8;

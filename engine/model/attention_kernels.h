@@ -46,10 +46,6 @@ void kernel_weighted_values_f16(const AttentionShape& s, const float* a, const u
 void floats_to_halves(const float* x, int n, uint16_t* out);
 void halves_to_floats(const uint16_t* x, int n, float* out);
 
-// True when the environment sets SCENESTREAMER_AB_PLAIN_KERNELS (read once): the AVX2 forms then defer to the plain
-// ones. For interleaved A/B timing in one binary; not a setting for production.
-bool kernels_forced_plain();
-
 // The plain forms (what the fast forms must equal up to float rounding); exposed for the tests.
 void kernel_key_scores_plain(const AttentionShape& s, const float* q, const float* k, const int* keys, int m,
                              float* scores);

@@ -71,19 +71,10 @@ namespace {
 
 Anchor anchor_of(const DecoderToken& t) { return Anchor(t.has_pose, t.pose, t.step); }
 
-// SCENESTREAMER_AB_NO_KEPT_ROWS (read once) turns the kept rows off: for interleaved A/B timing in one binary.
-bool kept_rows_off() {
-  static const bool off = [] {
-    const char* e = std::getenv("SCENESTREAMER_AB_NO_KEPT_ROWS");
-    return e != nullptr && *e != 0 && *e != '0';
-  }();
-  return off;
-}
-
 // The embedding inputs of a position-less token that its first layer's cross-attention depends on (Model::embed),
 // or nothing for tokens that do not take the kept path.
 std::optional<PoselessKey> poseless_key(const DecoderToken& t) {
-  if (t.has_pose || kept_rows_off()) return std::nullopt;
+  if (t.has_pose) return std::nullopt;
   const auto kind = static_cast<uint8_t>(t.kind);
   switch (t.kind) {
     case TokenKind::sos:

@@ -2,7 +2,6 @@
 #include "engine/model/model.h"
 
 #include <cmath>
-#include <cstdlib>
 
 #include "absl/strings/str_cat.h"
 #include "engine/model/attention_kernels.h"
@@ -10,28 +9,6 @@
 #include "engine/model/matmul_bf16.h"
 
 namespace ss {
-
-namespace {
-
-// SCENESTREAMER_KV_PRECISION, else fp16. A value that is neither is an error, not a silent default.
-absl::StatusOr<KvPrecision> kv_precision_from_env() {
-  const char* env = std::getenv("SCENESTREAMER_KV_PRECISION");
-  if (env == nullptr || *env == 0) return KvPrecision::fp16;
-  auto p = kv_precision_by_name(env);
-  if (!p.ok()) return absl::InvalidArgumentError(absl::StrCat("SCENESTREAMER_KV_PRECISION: ", p.status().message()));
-  return p;
-}
-
-// SCENESTREAMER_MATMUL_PRECISION, else bf16 where the CPU has AVX512-BF16 (with or without AMX), else fp32.
-absl::StatusOr<MatmulPrecision> matmul_precision_from_env() {
-  const char* env = std::getenv("SCENESTREAMER_MATMUL_PRECISION");
-  if (env == nullptr || *env == 0) return bf16_products_available() ? MatmulPrecision::bf16 : MatmulPrecision::fp32;
-  auto p = matmul_precision_by_name(env);
-  if (!p.ok()) return absl::InvalidArgumentError(absl::StrCat("SCENESTREAMER_MATMUL_PRECISION: ", p.status().message()));
-  return p;
-}
-
-}  // namespace
 
 absl::StatusOr<MatmulPrecision> matmul_precision_by_name(const std::string& name) {
   if (name == "fp32") return MatmulPrecision::fp32;
@@ -121,16 +98,10 @@ absl::StatusOr<std::shared_ptr<const Model>> Model::create(Weights weights, Mode
   }
   if (options.step_threads < 1 || options.step_threads > 64)
     return absl::InvalidArgumentError(absl::StrCat("step threads must be 1 to 64, not ", options.step_threads));
-  if (!options.kv_precision) {
-    auto p = kv_precision_from_env();
-    if (!p.ok()) return p.status();
-    options.kv_precision = *p;
-  }
-  if (!options.matmul_precision) {
-    auto p = matmul_precision_from_env();
-    if (!p.ok()) return p.status();
-    options.matmul_precision = *p;
-  }
+  if (!options.kv_precision) options.kv_precision = KvPrecision::fp16;
+  // bf16 where the CPU has AVX512-BF16 (with or without AMX), else fp32.
+  if (!options.matmul_precision)
+    options.matmul_precision = bf16_products_available() ? MatmulPrecision::bf16 : MatmulPrecision::fp32;
   if (*options.matmul_precision == MatmulPrecision::bf16 && !bf16_products_available())
     return absl::FailedPreconditionError(
         "matmul precision bf16 needs a CPU with AVX512-BF16 (Intel Cooper Lake or Sapphire Rapids and later, AMD Zen "

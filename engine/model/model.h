@@ -77,11 +77,11 @@ enum class MatmulPrecision : uint8_t { fp32, bf16 };
 // How the model runs: the KV caches' storage, the dense products' precision, threads.
 struct ModelOptions {
   // fp16 (the default) halves a session's keys and values and the bytes its attention gathers; the math stays fp32
-  // (realism unchanged within its interval at K = 32: docs/performance.md). Unset: SCENESTREAMER_KV_PRECISION (fp32 or fp16), else
-  // fp16, resolved by Model::create, so every program that loads a model (server, tools) can choose without a flag.
+  // (realism unchanged within its interval at K = 32: docs/performance.md). Unset: fp16. The programs that load a
+  // model set it from their flags (the server's --kv_precision, bench's --kv-precision).
   std::optional<KvPrecision> kv_precision;
-  // Unset: SCENESTREAMER_MATMUL_PRECISION (fp32 or bf16), else bf16 where the CPU has AVX512-BF16 (realism unchanged
-  // within its interval: docs/performance.md), else fp32. bf16 asked for on a CPU without AVX512-BF16 is an error.
+  // Unset: bf16 where the CPU has AVX512-BF16 (realism unchanged within its interval: docs/performance.md), else
+  // fp32. bf16 asked for on a CPU without AVX512-BF16 is an error. From the flags as kv_precision is.
   std::optional<MatmulPrecision> matmul_precision;
   // Threads one decode call may use: its attention's groups of queries are shared out (the same bits at any count).
   // 1: the calling thread alone. For a lone session's latency; a server busy with many sessions gains nothing.

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "engine/model/attention_kernels.h"
+#include "engine/scenestreamer.h"
 #include "tests/unit/sim/session_fixture.h"
 
 namespace ss {
@@ -57,53 +58,55 @@ INSTANTIATE_TEST_SUITE_P(Precisions, PrecisionTest, ::testing::Values(Mode::fp32
                            return std::string(info.param == Mode::fp32 ? "fp32" : info.param == Mode::fp16 ? "fp16" : "fp16_bf16");
                          });
 
-TEST(DefaultPrecision, IsFp16UnlessTheEnvironmentSaysOtherwise) {
-  // ctest runs without SCENESTREAMER_KV_PRECISION; a run with it set tests that value instead.
-  const char* env = std::getenv("SCENESTREAMER_KV_PRECISION");
+// The precisions are options (ModelOptions; the door's EngineOptions, set from the programs' flags), never the
+// environment: a variable the engine once read changes nothing.
+TEST(DefaultPrecision, IsFp16AndTheEnvironmentIsNotRead) {
+  setenv("SCENESTREAMER_KV_PRECISION", "fp32", 1);
+  setenv("SCENESTREAMER_MATMUL_PRECISION", "fp32", 1);
   auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
+  unsetenv("SCENESTREAMER_KV_PRECISION");
+  unsetenv("SCENESTREAMER_MATMUL_PRECISION");
   ASSERT_TRUE(model.ok()) << model.status();
-  EXPECT_EQ(kv_precision_name((*model)->kv_precision()), std::string(env && *env ? env : "fp16"));
-  EXPECT_TRUE((*model)->new_cache().half() == ((*model)->kv_precision() == KvPrecision::fp16));
+  EXPECT_EQ((*model)->kv_precision(), KvPrecision::fp16);
+  EXPECT_TRUE((*model)->new_cache().half());
+  EXPECT_EQ(matmul_precision_name((*model)->matmul_precision()),
+            std::string(bf16_products_available() ? "bf16" : "fp32"));
 }
 
-TEST(DefaultPrecision, AnUnknownEnvironmentValueIsAnError) {
-  const char* old = std::getenv("SCENESTREAMER_KV_PRECISION");
-  const std::string saved = old ? old : "";
-  setenv("SCENESTREAMER_KV_PRECISION", "bf16", 1);
-  auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
-  auto pinned = Model::create(init_weights(*model_config_by_name("small"), 1), kv(KvPrecision::fp32));
-  if (old) setenv("SCENESTREAMER_KV_PRECISION", saved.c_str(), 1); else unsetenv("SCENESTREAMER_KV_PRECISION");
-  ASSERT_FALSE(model.ok());
-  EXPECT_EQ(model.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(model.status().message().find("SCENESTREAMER_KV_PRECISION"), std::string::npos) << model.status();
-  EXPECT_NE(model.status().message().find("'bf16'"), std::string::npos) << model.status();
-  EXPECT_TRUE(pinned.ok()) << "an explicit precision does not read the environment: " << pinned.status();
+TEST(DefaultPrecision, TheDoorTakesThePrecisionsByName) {
+  EngineOptions eo;
+  eo.random_config = "small";
+  eo.kv_precision = "fp32";
+  eo.matmul_precision = "fp32";
+  auto e = engine_create(eo);
+  ASSERT_TRUE(e.ok()) << e.status();
+  EXPECT_STREQ(engine_kv_precision(**e), "fp32");
+  EXPECT_STREQ(engine_matmul_precision(**e), "fp32");
+  eo.kv_precision = "";
+  eo.matmul_precision = "";
+  auto d = engine_create(eo);
+  ASSERT_TRUE(d.ok()) << d.status();
+  EXPECT_STREQ(engine_kv_precision(**d), "fp16");
+  EXPECT_STREQ(engine_matmul_precision(**d), bf16_products_available() ? "bf16" : "fp32");
 }
 
-TEST(DefaultPrecision, ProductsAreBf16WhereTheCpuHasAmxUnlessTheEnvironmentSaysOtherwise) {
-  const char* env = std::getenv("SCENESTREAMER_MATMUL_PRECISION");
-  const char* fallback = bf16_products_available() ? "bf16" : "fp32";
-  auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
-  if (env && std::string(env) == "bf16" && !bf16_products_available()) {
-    ASSERT_FALSE(model.ok());
-    EXPECT_EQ(model.status().code(), absl::StatusCode::kFailedPrecondition);
-    return;
-  }
-  ASSERT_TRUE(model.ok()) << model.status();
-  EXPECT_EQ(matmul_precision_name((*model)->matmul_precision()), std::string(env && *env ? env : fallback));
-}
-
-TEST(DefaultPrecision, AnUnknownProductPrecisionIsAnError) {
-  const char* old = std::getenv("SCENESTREAMER_MATMUL_PRECISION");
-  const std::string saved = old ? old : "";
-  setenv("SCENESTREAMER_MATMUL_PRECISION", "int8", 1);
-  auto model = Model::create(init_weights(*model_config_by_name("small"), 1));
-  if (old) setenv("SCENESTREAMER_MATMUL_PRECISION", saved.c_str(), 1); else unsetenv("SCENESTREAMER_MATMUL_PRECISION");
-  ASSERT_FALSE(model.ok());
-  EXPECT_EQ(model.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(model.status().message().find("SCENESTREAMER_MATMUL_PRECISION"), std::string::npos) << model.status();
-  EXPECT_NE(model.status().message().find("'int8'"), std::string::npos) << model.status();
+TEST(DefaultPrecision, AnUnknownPrecisionIsAnErrorNamingIt) {
+  EngineOptions eo;
+  eo.random_config = "small";
+  eo.kv_precision = "bf16";
+  auto e = engine_create(eo);
+  ASSERT_FALSE(e.ok());
+  EXPECT_EQ(e.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(e.status().message().find("kv precision: unknown KV precision 'bf16'"), std::string::npos) << e.status();
+  eo.kv_precision = "";
+  eo.matmul_precision = "int8";
+  auto m = engine_create(eo);
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(m.status().message().find("matmul precision: unknown matmul precision 'int8'"), std::string::npos)
+      << m.status();
   EXPECT_FALSE(matmul_precision_by_name("fp16").ok());
+  EXPECT_FALSE(kv_precision_by_name("bf16").ok());
 }
 
 TEST(DefaultPrecision, Bf16ProductsWhereTheCpuLacksThemAreAnError) {
