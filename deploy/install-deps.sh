@@ -15,7 +15,7 @@ BUILD="
   build-essential cmake ninja-build pkg-config
   protobuf-compiler libprotobuf-dev
   libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libssl-dev openssl
-  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev libjemalloc-dev
+  libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev libjemalloc-dev libcivetweb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 "
 ALL="$BUILD
@@ -28,6 +28,7 @@ ALL="$BUILD
   nginx haproxy yamllint python3-yaml
   libtorch-dev libopenblas0-openmp
   python3-torch
+  chromium
 "
 # libjemalloc-dev: the allocator of the server and the tools (server/allocator.h), linked in place of glibc's malloc.
 # python3-numpy, -setuptools, -wheel and -venv: the Python package (python/), its build and its install test.
@@ -35,6 +36,8 @@ ALL="$BUILD
 # them: they pull in ~330 shared libraries. python3-torch (on top of libtorch): the PPO example
 # (client_examples/python/ppo.py) and its test. nginx and haproxy are the session-affine routers (deploy/router/), run by
 # the cluster test; yamllint checks deploy/k8s/.
+# libcivetweb-dev: the viewer's HTTP and WebSocket server (viewer/). chromium: the viewer's browser tests
+# (tests/viewer), driven by playwright-core from npm (the npm step at the end).
 IMAGE="buildah debootstrap"
 
 case "${1:-all}" in
@@ -54,10 +57,30 @@ done
 
 if [ -z "$missing" ]; then
   echo "install-deps: all packages present"
-  exit 0
+else
+  if [ "$(id -u)" -eq 0 ]; then SUDO=""; else SUDO="sudo"; fi
+  echo "install-deps: installing$missing"
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends $missing
 fi
 
-if [ "$(id -u)" -eq 0 ]; then SUDO=""; else SUDO="sudo"; fi
-echo "install-deps: installing$missing"
-$SUDO apt-get update -q
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends $missing
+# The viewer's page tools from the npm registry (viewer/web/package-lock.json): Vite and TypeScript build the page
+# (its build, viewer/web/dist, is committed, so compiling needs no Node.js), playwright-core drives chromium in the
+# browser tests. Only for the full set; `npm ci` runs again only when the lockfile changed. They need Node.js 20.19
+# or newer (Vite 7); Debian bookworm's nodejs is 18, so the machine's own Node.js is used.
+if [ "${1:-all}" = all ]; then
+  WEB="$(cd "$(dirname "$0")/.." && pwd)/viewer/web"
+  if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+    echo "install-deps: the viewer's page tools need Node.js 20.19 or newer and npm on PATH (Debian bookworm's" \
+         "nodejs 18 is too old for Vite 7)" >&2
+    exit 1
+  fi
+  if ! node -e 'const [a, b] = process.versions.node.split(".").map(Number); process.exit(a > 20 || (a === 20 && b >= 19) ? 0 : 1)'; then
+    echo "install-deps: Node.js $(node --version) is older than 20.19, which the viewer's page tools (Vite 7) need" >&2
+    exit 1
+  fi
+  if ! cmp -s "$WEB/package-lock.json" "$WEB/node_modules/.package-lock.json.installed" 2>/dev/null; then
+    echo "install-deps: npm ci in viewer/web"
+    (cd "$WEB" && npm ci --no-audit --no-fund) && cp "$WEB/package-lock.json" "$WEB/node_modules/.package-lock.json.installed"
+  fi
+fi
