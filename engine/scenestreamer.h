@@ -13,6 +13,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "engine/base/rng.h"
+#include "engine/base/thread_pool.h"
 #include "engine/io/file_io.h"
 #include "engine/sim/session_types.h"
 
@@ -70,7 +71,8 @@ const char* engine_matmul_precision(const Engine& engine);   // "bf16" (default 
 bool engine_random_weights(const Engine& engine);
 // Number of map encodings computed so far (the rest were shared between sessions).
 int engine_map_encodes(const Engine& engine);
-// Sets flush-to-zero for the calling compute thread (denormals slow the math 2-7x).
+// Sets flush-to-zero for the calling compute thread (denormals slow the math 2-7x). A host runs its engine calls on a
+// ThreadPool (engine/base/thread_pool.h, the project's one pool) whose threads start with this.
 void engine_thread_init();
 
 // A new session on `source`: NOT_FOUND for an unknown scenario name, INVALID_ARGUMENT for bytes that are not a valid

@@ -1,7 +1,7 @@
 // The server's sessions as the gRPC handlers call them. It decides *when* an engine call runs and on which session;
 // what a step does is the engine's (engine/scenestreamer.h). Its parts: the registry (ids, caps, eviction, snapshots,
 // the reaper: server/session_registry.h), the tick barrier of multi-client sessions (server/tick_barrier.h), the watch
-// streams (server/watch_hub.h), the compute threads (engine calls in arrival order), and a clock that tests drive
+// streams (server/watch_hub.h), the compute threads (engine calls in arrival order, on the engine's ThreadPool), and a clock that tests drive
 // (server/clock.h).
 #pragma once
 
@@ -14,7 +14,6 @@
 #include "absl/status/statusor.h"
 #include "engine/scenestreamer.h"
 #include "server/clock.h"
-#include "server/compute_queue.h"
 #include "server/managed_session.h"
 #include "server/metrics.h"
 #include "server/session_registry.h"
@@ -116,7 +115,9 @@ class SessionManager {
   Metrics& metrics_;
   const Clock& clock_;
   WatchHub watch_hub_;
-  ComputeQueue compute_;       // before the registry: the registry's reaper, stopped first, uses it
+  // --threads compute threads: engine calls run there in arrival order. Before the registry: the registry's reaper,
+  // stopped first, uses it.
+  ThreadPool compute_;
   SessionRegistry registry_;
 };
 

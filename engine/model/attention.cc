@@ -161,7 +161,7 @@ void attend_one(const AttentionShape& shape, const float* q, const float* u, con
 }  // namespace
 
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
-                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool) {
+                       std::span<const QueryKeys* const> query_keys, ThreadPool* pool) {
   return relative_attention(x, p, heads, KeyValueRows(k, v), query_keys, pool);
 }
 
@@ -189,7 +189,7 @@ thread_local CallScratch call_scratch;
 }  // namespace
 
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
-                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool) {
+                       std::span<const QueryKeys* const> query_keys, ThreadPool* pool) {
   const int n = static_cast<int>(x.rows());
   const int d = static_cast<int>(x.cols());
   const int dh = d / heads;
@@ -223,7 +223,7 @@ Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const 
 
   Mat o = Mat::Zero(n, d);            // attention-weighted values
   Mat rel = Mat::Zero(n, heads * r);  // attention-weighted relation embeddings, projected by W_rv below
-  const size_t workers = pool ? pool->threads() : 1;
+  const size_t workers = pool ? pool->threads() + 1 : 1;  // the caller (thread 0) and the pool's threads
   if (cs.workers.size() < workers) cs.workers.resize(workers);
   auto run_group = [&](int group, int thread) {
     const QueryKeys* set = cs.groups[group].first;

@@ -15,7 +15,7 @@
 #include "engine/geometry/geometry.h"
 #include "engine/model/linalg.h"
 #include "engine/model/vocab.h"
-#include "engine/model/worker_pool.h"
+#include "engine/base/thread_pool.h"
 
 namespace ss {
 
@@ -109,8 +109,8 @@ struct KeyValueRows {
 // Returns the output projection (n x d). With a pool, the key sets' groups of queries run on its threads (the same
 // bits as without).
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const MatMap& k, const MatMap& v,
-                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool = nullptr);
+                       std::span<const QueryKeys* const> query_keys, ThreadPool* pool = nullptr);
 Mat relative_attention(const Mat& x, const AttentionParams& p, int heads, const KeyValueRows& kv,
-                       std::span<const QueryKeys* const> query_keys, WorkerPool* pool = nullptr);
+                       std::span<const QueryKeys* const> query_keys, ThreadPool* pool = nullptr);
 
 }  // namespace ss

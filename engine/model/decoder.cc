@@ -100,7 +100,7 @@ Model::KeySets Model::self_keys(const KvCache& cache, std::span<const DecoderTok
   out.per_query.resize(n);
   // One selector (and its scratch) per thread: each query's keys depend on the query alone.
   std::vector<SelfKeySelector> selectors(1, SelfKeySelector(cache.tokens, tokens, config().window_steps, limit_));
-  if (pool_ && n > 1) selectors.resize(pool_->threads(), selectors[0]);
+  if (pool_ && n > 1) selectors.resize(pool_->threads() + 1, selectors[0]);  // the caller's and the pool's
   std::vector<SelfKeys> keys(selectors.size());
   std::vector<QueryKeys*> sets(n);
   std::vector<std::vector<float>> features(n);  // per query: its posed keys' relation features, row by row

@@ -27,7 +27,8 @@ absl::StatusOr<KvPrecision> kv_precision_by_name(const std::string& name) {
 const char* kv_precision_name(KvPrecision p) { return p == KvPrecision::fp16 ? "fp16" : "fp32"; }
 
 Model::Model(Weights w, ModelOptions options) : weights_(std::move(w)), options_(options) {
-  if (options_.step_threads > 1) pool_ = std::make_unique<WorkerPool>(options_.step_threads);
+  // The caller is one of the step's threads: the pool adds the others.
+  if (options_.step_threads > 1) pool_ = std::make_unique<ThreadPool>(options_.step_threads - 1);
   const ModelConfig& c = weights_.config;
   limit_ = {c.knn_k, c.knn_radius, c.knn_always};
   poly_fc1_ = lin("encoder.polyline.fc1", false);

@@ -108,7 +108,7 @@ class Model {
   const ModelConfig& config() const { return weights_.config; }
   KvPrecision kv_precision() const { return *options_.kv_precision; }
   MatmulPrecision matmul_precision() const { return *options_.matmul_precision; }
-  int step_threads() const { return pool_ ? pool_->threads() : 1; }
+  int step_threads() const { return pool_ ? pool_->threads() + 1 : 1; }
   const Weights& weights() const { return weights_; }
 
   // Encodes a map (segments nearest the focus first, at most max_map_segments). FAILED_PRECONDITION when empty.
@@ -170,7 +170,7 @@ class Model {
   Weights weights_;
   ModelOptions options_;
   std::vector<std::unique_ptr<const Bf16Weight>> bf16_weights_;  // what the LinearParams' bf16 point to
-  std::unique_ptr<WorkerPool> pool_;  // step_threads > 1 only
+  std::unique_ptr<ThreadPool> pool_;  // step_threads - 1 threads beside the caller; step_threads > 1 only
   NeighbourLimit limit_;
   LinearParams poly_fc1_, poly_fc2_, poly_fc3_, poly_fc4_;
   NormParams poly_norm1_, poly_norm2_, encoder_final_norm_, decoder_final_norm_;

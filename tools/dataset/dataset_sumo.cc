@@ -25,7 +25,7 @@
 #include "tools/dataset/job.h"
 #include "tools/dataset/job_context.h"
 #include "tools/dataset/network.h"
-#include "tools/dataset/ordered_pool.h"
+#include "engine/base/ordered_pool.h"
 #include "tools/dataset/shard_writer.h"
 #include "tools/dataset/subprocess.h"
 #include "tools/dataset/sumo_tools.h"
