@@ -98,6 +98,12 @@ export class Renderer {
     this.ctx = ctx;
   }
 
+  // Waits for the canvas to be rasterised (Chromium records 2D calls and rasterises later): reading a pixel back
+  // makes a frame's measured time include its pixels.
+  flush() {
+    this.ctx.getImageData(0, 0, 1, 1);
+  }
+
   // The map's extent, for the first view of a session.
   mapBounds(features: MapFeature[]): [number, number, number, number] | null {
     if (!this.map || this.map.source !== features) this.map = buildMap(features);
