@@ -176,17 +176,22 @@ void Session::sample_motions(const Mat& h) {
 }
 
 // Reject sampling of motion (the paper's reject sampling of new agents, appendix D, applied to controls). A
-// sampled control is refused if it (3) runs the agent's box into another's at the next step (at its end or half-way,
-// as the 10 Hz frames draw it), (2) takes a vehicle whose box is on the road now off it, or (1) leaves the agent so
-// fast that braking at kRejectBrake would not stop it short of another (which moves on at its velocity meanwhile);
-// pairs whose boxes overlap already are exempt. A refused agent draws again from its motion distribution restricted
-// to the controls with no fault (sample_token_if over kRejectTopP of the mass, not only the top-p nucleus: braking
-// hard is often outside it; all 1,089 controls made eval 1.6x slower for realism within noise), else with fault 1
-// only, else faults 1-2; if none passes, it keeps its draw. Agents are visited in order, each checking against the
-// others' latest choices. A controlled agent's next pose is unknown: it is taken both as its last control repeated
-// and as braking at kLeaderBrake from now, and a control must clear both. Fault 1 also holds RSS's safe longitudinal
-// distance (response time 0: the follower chooses again at the next step) toward every agent ahead of it: braking at
-// kRejectBrake, it stops short of where the leader stops braking at kLeaderBrake.
+// sampled control is refused if it
+//   (3) runs the agent's box into another's at the next step (at its end or half-way, as the 10 Hz frames draw it);
+//   (2) takes a vehicle whose box is on the road now off it;
+//   (1) leaves the agent without room: braking at kRejectBrake, it would not stop short of another moving on at its
+//       velocity, nor of where an agent ahead stops braking at kLeaderBrake (RSS's safe longitudinal distance, with
+//       response time 0: the follower chooses again at the next step); or, with a controlled agent behind it, it
+//       would stop braking at kLeaderBrake where that agent cannot stop short of it; or, moving on at its new
+//       velocity, it would meet a controlled agent's course within kYieldSteps (where their paths may cross that
+//       soon, the model's agent yields: the caller's ego may not).
+// A controlled agent's next pose is unknown: a control must clear both its last control repeated and braking at
+// kLeaderBrake from now. Pairs whose boxes overlap already are exempt. A refused agent draws again from its motion
+// distribution restricted to the controls with no fault (sample_token_if over kRejectTopP of the mass, not only the
+// top-p nucleus: braking hard is often outside it; all 1,089 controls made eval 1.6x slower for realism within
+// noise), else with fault 1 only, else faults 1-2; if none passes, it keeps its draw. Agents are visited in order,
+// each checking against the others' latest choices. docs/closed-loop.md measures what the rules for controlled
+// agents do.
 void Session::reject_motion_faults(const std::function<std::span<const float>(size_t)>& row) {
   struct Next {
     Box box;        // at the next step
@@ -227,8 +232,8 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
   std::vector<Box> now(n);
   std::vector<Next> next(n);
   std::vector<std::optional<Next>> braked(n);  // controlled agents: their next step braking at kLeaderBrake
-  // Controlled agents: their boxes over kYieldSteps steps, last control repeated (course[j][0] is next[j].box), and
-  // speeding up at kYieldAccel.
+  // Controlled agents' courses over kYieldSteps steps: [0] the last control repeated ([0][0] is next[j].box);
+  // [1..3] speeding up at kYieldAccel, turning kYieldTurn less than the last control, as much, and more.
   std::vector<std::vector<std::vector<Box>>> courses(n);
   std::vector<double> reach(n);     // no point of the agent's box, braking or not, gets farther from its centre now
   std::vector<int8_t> keep_road(n, -1);  // a vehicle (type 0) on the road now: 1 yes, 0 no, -1 not asked yet
