@@ -174,6 +174,26 @@ nlohmann::json tracks_json(const ss::Scenario& s, const std::vector<std::map<int
 
 }  // namespace
 
+namespace {
+
+// A light's stop line runs across its lane: the lane's direction at the lane point nearest the stop point (0 when the
+// lane is not in the map). Scenario files keep the stop point only; the server's ticks carry the heading.
+double lane_heading_at(const ss::Scenario& s, int64_t lane, const ss::MapPoint& p) {
+  for (const ss::MapFeature& f : s.map_features) {
+    if (f.id != lane || f.kind != ss::MapFeatureKind::lane || f.points.size() < 2) continue;
+    size_t best = 0;
+    double best_d = 1e300;
+    for (size_t i = 0; i + 1 < f.points.size(); ++i) {
+      const double d = std::hypot(f.points[i].x - p.x, f.points[i].y - p.y);
+      if (d < best_d) best_d = d, best = i;
+    }
+    return std::atan2(f.points[best + 1].y - f.points[best].y, f.points[best + 1].x - f.points[best].x);
+  }
+  return 0;
+}
+
+}  // namespace
+
 nlohmann::json scenario_json(const ss::Scenario& s, const ss::Scenario* log) {
   const ss::EventMap event_map = ss::event_map_from_scenario(s);
   std::vector<std::map<int64_t, int>> flags(s.num_frames());
@@ -189,7 +209,7 @@ nlohmann::json scenario_json(const ss::Scenario& s, const ss::Scenario* log) {
     if (f < static_cast<int>(s.signals.size()))
       for (const ss::SignalLaneState& l : s.signals[f])
         if (l.has_stop_point)
-          frame.push_back({l.lane, cm(l.stop_point.x), cm(l.stop_point.y), 0,
+          frame.push_back({l.lane, cm(l.stop_point.x), cm(l.stop_point.y), mrad(lane_heading_at(s, l.lane, l.stop_point)),
                            static_cast<int>(ss::light_state_from_womd(l.state))});
     lights.push_back(frame);
   }

@@ -154,7 +154,8 @@ def screenshots(args):
             tick = server.stub.StepScene(pb.StepSceneRequest(session_id=r.session_id,
                                                              poses=[pose] if pose else [])).ticks[-1]
             page.wait(f"window.__viewer.ticksDrawn.includes({tick.tick})")
-        page.wait("document.querySelectorAll('#sessions tbody tr').length === 2")
+        page.wait("document.querySelectorAll('#sessions tbody tr').length === 2 && [...document.querySelectorAll("
+                  f"'#sessions tbody td')].some(td => td.textContent === '{tick.tick}')", 10000)
         page.click("#fit")
         page.screenshot(os.path.join(args.out, "viewer-live.png"))
         # A rollout file: two `simulate` rollouts of a bundled scenario, overlaid, with the logged future.

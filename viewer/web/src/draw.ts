@@ -76,10 +76,10 @@ function buildMap(features: MapFeature[]): MapPaths {
   return m;
 }
 
-// Adds an oriented box (centre, heading, length, width, grown by `grow` metres) to `p`.
-function box(p: Path2D, x: number, y: number, h: number, l: number, w: number, grow = 0) {
+// Adds an oriented box (centre, heading, length, width, grown by `grow` metres, each half at least `min`) to `p`.
+function box(p: Path2D, x: number, y: number, h: number, l: number, w: number, grow = 0, min = 0.25) {
   const c = Math.cos(h), s = Math.sin(h);
-  const hl = Math.max(l, 0.5) / 2 + grow, hw = Math.max(w, 0.5) / 2 + grow;
+  const hl = Math.max(l / 2, min) + grow, hw = Math.max(w / 2, min) + grow;
   p.moveTo(x + c * hl - s * hw, y + s * hl + c * hw);
   p.lineTo(x - c * hl - s * hw, y - s * hl + c * hw);
   p.lineTo(x - c * hl + s * hw, y - s * hl - c * hw);
@@ -233,8 +233,9 @@ export class Renderer {
     let drawn = 0;
     for (const a of scene.agents) {
       const [, type, x, y, h, l, w, , flags] = a;
-      box(flags & Flag.controlled ? ego : fills[Math.min(type, 3)], x, y, h, l, w);
-      if (flags & Flag.entered) box(entered, x, y, h, l, w, 0.4);
+      // At least 5 pixels across, so a pedestrian stays visible when the whole map is on the screen.
+      box(flags & Flag.controlled ? ego : fills[Math.min(type, 3)], x, y, h, l, w, 0, 2.5 * px);
+      if (flags & Flag.entered) box(entered, x, y, h, l, w, 0.4, 2.5 * px);
       const r = Math.max(l, 0.5) / 2;
       heading.moveTo(x, y);
       heading.lineTo(x + Math.cos(h) * r, y + Math.sin(h) * r);
