@@ -15,6 +15,7 @@
 #include "engine/base/rng.h"
 #include "engine/base/thread_pool.h"
 #include "engine/io/file_io.h"
+#include "engine/io/record.h"
 #include "engine/sim/session_types.h"
 
 namespace ss {
@@ -97,8 +98,9 @@ const std::vector<MapFeature>& session_map_features(const Session& session);
 uint64_t session_memory_bytes(const Engine& engine, const Session& session);
 
 // The session's state: everything needed to continue it (options, tick position, pushed poses, RNG, agents, the
-// token batches that rebuild its cache), starting with kSessionStateMagic (session_types.h), whose last character
-// is the format version; a state of another version is refused naming both (FAILED_PRECONDITION).
+// token batches that rebuild its cache), as one framed record (engine/io/record.h, which hosts use for their own
+// saved files too) of kSessionStateMagic (session_types.h), whose last character is the format version; a state of
+// another version is refused naming both (FAILED_PRECONDITION), a cut or corrupt one is DATA_LOSS.
 std::string session_save(const Session& session);
 // A session from session_save() bytes, on the same source it was created on.
 absl::StatusOr<SessionPtr> session_restore(Engine& engine, const SessionSource& source, const std::string& state);

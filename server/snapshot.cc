@@ -1,33 +1,22 @@
 #include "server/snapshot.h"
 
 #include <algorithm>
-#include <cstring>
 #include <filesystem>
 
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 #include "server/session_id.h"
 #include "state/snapshot.pb.h"
 
 namespace ss::server {
 namespace {
 
-// The format's magic and version, refused with both versions named when they differ. SSSNAP01 had no checksum;
-// SSSNAP02 kept the tick clock here (now the engine's state holds it); SSSNAP04 added the tenant and the
-// controllers' credentials; SSSNAP05 is one protobuf message (proto/state/snapshot.proto) and holds an engine state
-// of version 3 (older files could not be restored by this engine anyway).
-constexpr char kMagicPrefix[] = "SSSNAP";
-constexpr char kMagic[] = "SSSNAP05";
+// The message's magic and version (its last two characters), refused with both versions named when they differ.
+// SSSNAP01 had no checksum; SSSNAP02 kept the tick clock here (now the engine's state holds it); SSSNAP04 added the
+// tenant and the controllers' credentials; SSSNAP05 is one protobuf message (proto/state/snapshot.proto) and holds
+// an engine state of version 3. The file is the project's one framed record (engine/io/record.h); files in the
+// layout before it (the magic, the message, an FNV-1a hash of both) are still read.
+constexpr RecordFormat kFormat{"SSSNAP05", 2, "snapshot", "server", RecordFormat::Earlier::message_then_hash};
 constexpr char kSuffix[] = ".snapshot";
-
-void put_u64(std::string& out, uint64_t v) {
-  for (int i = 0; i < 8; ++i) out += static_cast<char>((v >> (8 * i)) & 0xff);
-}
-uint64_t get_u64(const char* p) {
-  uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v |= uint64_t(static_cast<unsigned char>(p[i])) << (8 * i);
-  return v;
-}
 
 }  // namespace
 
@@ -51,9 +40,7 @@ absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   m.set_womd_bytes(s.source.womd_bytes);
   m.set_tick_deadline_ms(s.tick_deadline_ms);
   m.set_session_state(s.session_bytes);
-  std::string out(kMagic, 8);
-  m.AppendToString(&out);
-  put_u64(out, fnv1a64(out));
+  const std::string out = record_write(kFormat, m.SerializeAsString());
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return absl::InternalError(absl::StrCat("snapshot directory ", dir, " cannot be created: ", ec.message()));
@@ -65,22 +52,21 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   if (!path.ok()) return path.status();
   auto bytes = file_read_all(*path);
   if (!bytes.ok()) return absl::Status(bytes.status().code(), absl::StrCat("snapshot ", bytes.status().message()));
-  const std::string& in = *bytes;
   auto bad = [&](const std::string& what) { return absl::DataLossError(absl::StrCat("snapshot ", *path, ": ", what)); };
-  if (in.size() < 8 || std::memcmp(in.data(), kMagicPrefix, 6) != 0)
-    return bad("not a snapshot file (no SSSNAP magic)");
-  if (std::memcmp(in.data(), kMagic, 8) != 0)
-    return absl::FailedPreconditionError(absl::StrCat("snapshot ", *path, ": format ", in.substr(0, 8),
-                                                      " is not this server's ", kMagic,
-                                                      "; the session cannot be restored by this version"));
-  if (in.size() < 16) return bad("truncated (no checksum)");
-  const uint64_t stored = get_u64(in.data() + in.size() - 8);
-  const uint64_t actual = fnv1a64(std::string_view(in.data(), in.size() - 8));
-  if (stored != actual)
-    return bad(absl::StrFormat("checksum mismatch (the file says %016x, its %d bytes hash to %016x): the file is "
-                               "corrupt", stored, in.size() - 8, actual));
+  const std::string where = absl::StrCat("snapshot ", *path);
+  RecordFormat format = kFormat;
+  format.what = where;
+  auto message = record_read(format, *bytes);
+  if (!message.ok()) {
+    if (message.status().code() == absl::StatusCode::kInvalidArgument)  // not a snapshot at all: its content is lost
+      return absl::DataLossError(message.status().message());
+    if (message.status().code() == absl::StatusCode::kFailedPrecondition)
+      return absl::FailedPreconditionError(
+          absl::StrCat(message.status().message(), "; the session cannot be restored by this version"));
+    return message.status();
+  }
   state::Snapshot m;
-  if (!m.ParseFromArray(in.data() + 8, static_cast<int>(in.size() - 16))) return bad("the message does not parse");
+  if (!m.ParseFromArray(message->data(), static_cast<int>(message->size()))) return bad("the message does not parse");
   if (m.session_id() != session_id)
     return bad(absl::StrCat("holds session ", echo_id(m.session_id()), ", not the ", echo_id(session_id),
                             " its name says"));

@@ -1,8 +1,8 @@
 // A session's snapshot file: what the server adds around Session::save() bytes (the scenario source, the
-// multi-client tick deadline), so a restarted or evicted session continues exactly where it was. The file is named after the session id
-// (checked against the id rule, never taken from inside a file), ends with an FNV-1a checksum of everything before it
-// (a flipped bit is refused, not restored), and is written through a temporary file renamed into place, so a crash
-// never leaves half a snapshot.
+// multi-client tick deadline, the tenant and the controllers), so a restarted or evicted session continues exactly
+// where it was. The file is named after the session id (checked against the id rule, never taken from inside a
+// file), is the project's one framed record (engine/io/record.h: a cut or a flipped bit is refused, not restored),
+// and is written through a temporary file renamed into place, so a crash never leaves half a snapshot.
 #pragma once
 
 #include <cstdint>

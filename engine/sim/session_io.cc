@@ -2,23 +2,25 @@
 // decoder batches of the last L * (W - 1) steps; restore() re-runs those batches, in the same batches, which
 // rebuilds every key and value the cache holds bit for bit (keys at layer l depend on tokens at most l * (W - 1)
 // steps older), so a restored session continues exactly as the saved one would have.
-// Layout: kSessionStateMagic (8 bytes), the FNV-1a hash of the message (8 bytes, little-endian), then one
-// ss.state.SessionState message (proto/state/session_state.proto). The hash makes a truncated or corrupted state an
-// error: a protobuf message cut at a field boundary still parses, and would restore a session missing its last fields.
+// Layout: the project's one framed record (engine/io/record.h) of kSessionStateMagic and one ss.state.SessionState
+// message (proto/state/session_state.proto). The framing makes a truncated or corrupted state an error: a protobuf
+// message cut at a field boundary still parses, and would restore a session missing its last fields. States in the
+// layout before the framing (the magic, the message's FNV-1a hash, the message) are still read.
 #include <cmath>
 #include <cstring>
 #include <string_view>
 
 #include "absl/strings/str_cat.h"
+#include "engine/io/record.h"
 #include "engine/sim/session.h"
 #include "state/session_state.pb.h"
 
 namespace ss {
 namespace {
 
-// kSessionStateMagic without its terminating NUL.
-constexpr std::string_view kMagic(kSessionStateMagic, sizeof kSessionStateMagic - 1);
-constexpr size_t kHeaderBytes = kMagic.size() + 8;  // the magic and the message's hash
+// kSessionStateMagic without its terminating NUL; its last character is the version.
+constexpr RecordFormat kFormat{std::string_view(kSessionStateMagic, sizeof kSessionStateMagic - 1), 1,
+                               "session snapshot", "engine", RecordFormat::Earlier::hash_then_message};
 
 void put_pose(state::Pose* p, double x, double y, double heading) {
   p->set_x(x);
@@ -150,10 +152,7 @@ std::string Session::save() const {
       p->mutable_relative_state()->Add(t.relative_state.begin(), t.relative_state.end());
     }
   }
-  const std::string message = m.SerializeAsString();
-  std::string out(kMagic);
-  for (uint64_t h = fnv1a64(message), i = 0; i < 8; ++i) out += static_cast<char>((h >> (8 * i)) & 0xff);
-  return out + message;
+  return record_write(kFormat, m.SerializeAsString());
 }
 
 absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const Model> model,
@@ -163,20 +162,10 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   auto bad = [](const std::string& what) {
     return absl::InvalidArgumentError(absl::StrCat("session snapshot: ", what));
   };
-  if (bytes.size() < kMagic.size() || bytes.compare(0, kMagic.size() - 1, kMagic.substr(0, kMagic.size() - 1)) != 0)
-    return bad("not a session snapshot (bad magic)");
-  if (bytes[kMagic.size() - 1] != kMagic.back())
-    return absl::FailedPreconditionError(absl::StrCat("session snapshot: state format version ",
-                                                      std::string(1, bytes[kMagic.size() - 1]),
-                                                      " is not this engine's version ", std::string(1, kMagic.back())));
-  if (bytes.size() < kHeaderBytes) return bad("truncated before the state message");
-  const std::string_view message(bytes.data() + kHeaderBytes, bytes.size() - kHeaderBytes);
-  uint64_t stored = 0;
-  for (size_t i = 0; i < 8; ++i) stored |= uint64_t(static_cast<unsigned char>(bytes[kMagic.size() + i])) << (8 * i);
-  if (stored != fnv1a64(message))
-    return absl::DataLossError("session snapshot: the state's hash does not match its bytes (truncated or corrupt)");
+  auto message = record_read(kFormat, bytes);
+  if (!message.ok()) return message.status();
   state::SessionState m;
-  if (!m.ParseFromArray(message.data(), static_cast<int>(message.size())))
+  if (!m.ParseFromArray(message->data(), static_cast<int>(message->size())))
     return bad("the state message does not parse");
   const ModelConfig& c = model->config();
   auto s = std::unique_ptr<Session>(new Session());

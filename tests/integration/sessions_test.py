@@ -3,6 +3,7 @@ caps hold while sessions fork, grow and come back, a close wins over a restore, 
 compute threads are shared between long and short calls, and a session's ticks do not depend on the others'."""
 import os
 import shutil
+import struct
 import tempfile
 import threading
 import time
@@ -11,7 +12,7 @@ import unittest
 import grpc
 
 from scenestreamer.v1 import simulator_pb2 as pb
-from server_process import Server, error_of
+from server_process import Server, error_of, eventually
 
 C = grpc.StatusCode
 
@@ -151,7 +152,8 @@ class CapsTest(unittest.TestCase):
             busy = threading.Thread(target=lambda: srv.stub.StepScene(
                 pb.StepSceneRequest(session_id=src, num_ticks=12), timeout=300))
             busy.start()
-            time.sleep(0.3)
+            eventually(lambda: srv.stub.GetSession(pb.GetSessionRequest(session_id=src)).info.tick > 0,
+                       "the busy call computed a tick")
             codes = []
 
             def fork():
@@ -287,6 +289,40 @@ def fnv1a64(data):
     return h
 
 
+def _crc32c_table():
+    table = []
+    for n in range(256):
+        c = n
+        for _ in range(8):
+            c = (c >> 1) ^ (0x82F63B78 if c & 1 else 0)
+        table.append(c)
+    return table
+
+
+_CRC32C = _crc32c_table()
+
+
+def masked_crc32c(data):
+    crc = 0xFFFFFFFF
+    for b in data:
+        crc = _CRC32C[(crc ^ b) & 0xFF] ^ (crc >> 8)
+    crc ^= 0xFFFFFFFF
+    return (((crc >> 15) | (crc << 17)) + 0xA282EAD8) & 0xFFFFFFFF
+
+
+def frame(data):
+    """One TFRecord record around `data`: the framing of every saved state (engine/io/record.h)."""
+    n = struct.pack("<Q", len(data))
+    return n + struct.pack("<I", masked_crc32c(n)) + data + struct.pack("<I", masked_crc32c(data))
+
+
+def unframe(record):
+    """The data of one TFRecord record (the CRCs are the server's to check)."""
+    (n,) = struct.unpack("<Q", record[:8])
+    assert len(record) == 12 + n + 4, "not one record"
+    return record[12:12 + n]
+
+
 def varint(n):
     out = bytearray()
     while True:
@@ -297,9 +333,10 @@ def varint(n):
 
 
 def with_session_id(snapshot, new_id):
-    """The snapshot file's bytes (SSSNAP05: magic, a protobuf message, checksum) with another session id inside and
-    its checksum redone. The id is the message's field 1, which protobuf writes first: tag 0x0A, length, bytes."""
-    magic, body = snapshot[:8], snapshot[8:-8]
+    """The snapshot file's bytes (one record: SSSNAP05 and a protobuf message) with another session id inside, framed
+    again. The id is the message's field 1, which protobuf writes first: tag 0x0A, length, bytes."""
+    data = unframe(snapshot)
+    magic, body = data[:8], data[8:]
     assert body[0] == 0x0A, "the session id is not the message's first field"
     n, pos, shift = 0, 1, 0
     while True:
@@ -307,8 +344,7 @@ def with_session_id(snapshot, new_id):
         pos, shift = pos + 1, shift + 7
         if not body[pos - 1] & 0x80:
             break
-    out = magic + b"\x0a" + varint(len(new_id)) + new_id + body[pos + n:]
-    return out + fnv1a64(out).to_bytes(8, "little")
+    return frame(magic + b"\x0a" + varint(len(new_id)) + new_id + body[pos + n:])
 
 
 class SnapshotTest(unittest.TestCase):
@@ -353,13 +389,25 @@ class SnapshotTest(unittest.TestCase):
         self.assertFalse(os.path.exists(os.path.join(self.root, "escaped.snapshot")))
 
     def test_an_older_snapshot_format_is_refused_naming_both_versions(self):
-        data = self.saved_session("old")
-        body = data[:-8]
-        with open(os.path.join(self.dir, "old.snapshot"), "wb") as f:
-            f.write(b"SSSNAP01" + body[8:])
+        data = unframe(self.saved_session("old"))
+        # Framed as today and in the layout before the framing (the magic first): refused either way.
+        older = b"SSSNAP01" + data[8:]
+        for old in (frame(older), older + fnv1a64(older).to_bytes(8, "little")):
+            with open(os.path.join(self.dir, "old.snapshot"), "wb") as f:
+                f.write(old)
+            with Server(snapshot_dir=self.dir) as srv:
+                self.assertIn("restored 0 sessions", srv.output())
+                self.assertRegex(srv.output(), r"format SSSNAP01 is not this server's SSSNAP0[2-9]")
+
+    def test_a_snapshot_in_the_layout_before_the_framing_restores(self):
+        # Before the one framed record (engine/io/record.h) a snapshot file was its magic, the message and an FNV-1a
+        # hash of both: such files, written by earlier servers, still restore.
+        data = unframe(self.saved_session("earlier"))
+        with open(os.path.join(self.dir, "earlier.snapshot"), "wb") as f:
+            f.write(data + fnv1a64(data).to_bytes(8, "little"))
         with Server(snapshot_dir=self.dir) as srv:
-            self.assertIn("restored 0 sessions", srv.output())
-            self.assertRegex(srv.output(), r"format SSSNAP01 is not this server's SSSNAP0[2-9]")
+            self.assertIn("restored 1 sessions", srv.output())
+            self.assertEqual(srv.stub.GetSession(pb.GetSessionRequest(session_id="earlier")).current.tick, 2)
 
     def test_snapshots_are_written_in_the_background_and_kept_until_close(self):
         # kill -9 loses at most --snapshot_interval_s of a session; a second crash right after a restart loses
@@ -515,11 +563,17 @@ class WatchersTest(unittest.TestCase):
                 self.assertEqual(next(st).tick, 1)
             for st in streams:
                 st.cancel()
-            time.sleep(0.5)
-            # The cap counts open streams: closed ones give their place back.
-            again = srv.stub.WatchSession(pb.WatchSessionRequest(session_id=sid), timeout=30)
-            self.assertEqual(next(again).tick, 1)
-            again.cancel()
+
+            # The cap counts open streams: closed ones give their place back (as the server sees them close).
+            def watch():
+                again = srv.stub.WatchSession(pb.WatchSessionRequest(session_id=sid), timeout=30)
+                code, _ = error_of(lambda: self.assertEqual(next(again).tick, 1))
+                if code is None:
+                    return again
+                self.assertEqual(code, C.RESOURCE_EXHAUSTED)
+                return None
+
+            eventually(watch, "a watch stream after the others closed").cancel()
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@
 #include <set>
 #include <thread>
 
+#include "engine/io/record.h"
 #include "engine/sim/events.h"
 #include "engine/sim/map_cache.h"
 #include "engine/tokens/fidelity.h"
@@ -504,11 +505,29 @@ TEST_F(SessionTest, TenHzPosesAreCheckedWhenTheyArrive) {
 
 TEST_F(SessionTest, AnOlderStateFormatIsRefusedNamingBothVersions) {
   auto s = start(w(), {});
-  std::string bytes = s->save();
-  bytes[7] = '2';
-  auto r = Session::restore(w().model, w().scenario, w().map, bytes);
+  const RecordFormat now{"SSSESSN3", 1, "session snapshot", "engine"};
+  const RecordFormat older{"SSSESSN2", 1, "session snapshot", "engine"};
+  auto message = record_read(now, s->save());
+  ASSERT_TRUE(message.ok()) << message.status();
+  auto r = Session::restore(w().model, w().scenario, w().map, record_write(older, *message));
   EXPECT_EQ(r.status().code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_NE(r.status().message().find("version 2 is not this engine's version 3"), std::string::npos) << r.status();
+}
+
+// The layout before the one framed record: the magic, the message's FNV-1a hash, the message. Still restored.
+TEST_F(SessionTest, AStateInTheLayoutBeforeTheFramingRestores) {
+  auto s = start(w(), {});
+  roll(*s, w(), 3);
+  auto message = record_read({"SSSESSN3", 1, "session snapshot", "engine"}, s->save());
+  ASSERT_TRUE(message.ok()) << message.status();
+  std::string earlier = "SSSESSN3";
+  for (uint64_t h = fnv1a64(*message), i = 0; i < 8; ++i) earlier += static_cast<char>((h >> (8 * i)) & 0xff);
+  earlier += *message;
+  auto r = Session::restore(w().model, w().scenario, w().map, earlier);
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ((*r)->save(), s->save());
+  earlier[20] = static_cast<char>(earlier[20] ^ 1);
+  EXPECT_EQ(Session::restore(w().model, w().scenario, w().map, earlier).status().code(), absl::StatusCode::kDataLoss);
 }
 
 TEST_F(SessionTest, RestoreRefusesCorruptBytes) {
@@ -540,14 +559,12 @@ TEST_F(SessionTest, RestoreChecksEveryFieldOfAWellFormedState) {
   auto s = start(w(), {});
   roll(*s, w(), 3);
   const std::string bytes = s->save();
+  const RecordFormat format{"SSSESSN3", 1, "session snapshot", "engine"};
   auto edited = [&](const std::function<void(state::SessionState&)>& edit) {
     state::SessionState m;
-    EXPECT_TRUE(m.ParseFromString(bytes.substr(16)));
+    EXPECT_TRUE(m.ParseFromString(*record_read(format, bytes)));
     edit(m);
-    const std::string message = m.SerializeAsString();
-    std::string out = bytes.substr(0, 8);
-    for (uint64_t h = fnv1a64(message), i = 0; i < 8; ++i) out += static_cast<char>((h >> (8 * i)) & 0xff);
-    return Session::restore(w().model, w().scenario, w().map, out + message);
+    return Session::restore(w().model, w().scenario, w().map, record_write(format, m.SerializeAsString()));
   };
   ASSERT_TRUE(edited([](state::SessionState&) {}).ok());  // the unedited message restores
   const std::vector<std::pair<std::string, std::function<void(state::SessionState&)>>> cases = {
