@@ -162,6 +162,19 @@ def error_of(fn, *args, **kw):
     return None, None
 
 
+def eventually(fn, what, timeout=60):
+    """fn()'s first true value, polled until `timeout` s pass (then an AssertionError naming `what`): for a state of
+    the server process that a test cannot be told of, instead of sleeping a fixed time and hoping."""
+    deadline = time.time() + timeout
+    while True:
+        value = fn()
+        if value:
+            return value
+        if time.time() > deadline:
+            raise AssertionError(f"not within {timeout} s: {what}")
+        time.sleep(0.02)
+
+
 def ego_pose(tick):
     """A simple deterministic controller: the controlled agent keeps its heading and speed for 0.5 s."""
     import math

@@ -11,7 +11,7 @@ import urllib.request
 import grpc
 
 from scenestreamer.v1 import simulator_pb2 as pb
-from server_process import DATA, Server, ego_pose, womd_records
+from server_process import DATA, Server, ego_pose, error_of, eventually, womd_records
 
 C = grpc.StatusCode
 
@@ -168,16 +168,19 @@ class RpcTest(unittest.TestCase):
         got = []
         stream = self.stub.WatchSession(pb.WatchSessionRequest(session_id=c.session_id), timeout=60)
 
+        registered = threading.Event()  # the stream has its first tick: it is registered for the next ones
+
         def read():
             for t in stream:
                 got.append(t.tick)
+                registered.set()
                 if t.tick >= 3:
                     stream.cancel()
                     return
 
         reader = threading.Thread(target=read)
         reader.start()
-        time.sleep(0.5)
+        self.assertTrue(registered.wait(30), "the watch stream gave no first tick")
         rollout(self.stub, c.session_id, c.initial, 3)
         reader.join(30)
         self.assertEqual(got, [0, 1, 2, 3])
@@ -299,7 +302,9 @@ class ScenarioLimitTest(unittest.TestCase):
             self.assertIn("tracks, above the limit of 10", e.exception.details())
             # Bundled scenarios are not held to the client limits; an idle session closes after --idle_timeout_s.
             c = srv.stub.CreateSession(pb.CreateSessionRequest(scenario_name=first_scenario(srv.stub)))
-            time.sleep(2.5)
+            # ListSessions does not use a session (GetSession would, and keep it open).
+            eventually(lambda: c.session_id not in [x.session_id for x in srv.stub.ListSessions(
+                pb.ListSessionsRequest()).sessions], "the idle session closed")
             with self.assertRaises(grpc.RpcError) as e:
                 srv.stub.GetSession(pb.GetSessionRequest(session_id=c.session_id))
             self.assertEqual(e.exception.code(), C.NOT_FOUND)
@@ -365,13 +370,15 @@ class SnapshotTest(unittest.TestCase):
         t = threading.Thread(target=lambda: results.append(
             srv.stub.StepScene(pb.StepSceneRequest(session_id=c.session_id, num_ticks=30))))
         t.start()
-        time.sleep(0.3)
+        eventually(lambda: srv.stub.GetSession(pb.GetSessionRequest(session_id=c.session_id)).info.tick > 0,
+                   "the long call computed a tick")
         srv.proc.send_signal(15)
-        time.sleep(0.2)
-        with self.assertRaises(grpc.RpcError) as e:
-            srv.stub.CreateSession(pb.CreateSessionRequest(scenario_name=name), timeout=10)
-        self.assertEqual(e.exception.code(), C.UNAVAILABLE)
-        self.assertIn("draining", e.exception.details())
+
+        def refused():  # creates that come before the signal is handled succeed; the drain then refuses them
+            code, details = error_of(srv.stub.CreateSession, pb.CreateSessionRequest(scenario_name=name), timeout=10)
+            return details if code == C.UNAVAILABLE else None
+
+        self.assertIn("draining", eventually(refused, "the drain began"))
         self.assertEqual(health(srv.channel), b"\x08\x02")  # NOT_SERVING
         t.join(60)
         self.assertEqual(len(results), 1)
