@@ -1,7 +1,8 @@
 // The session manager's time: idle timeouts, eviction age, snapshot and trim intervals, tick and call deadlines, the
 // reaper's pace. Behind an interface so that tests drive it (TestClock) instead of sleeping on wall time and asserting
 // on how long a wait took. Time points are on the steady clock's timeline either way, so a deadline a gRPC handler
-// computes from the real clock and one a test computes from its own clock have the same type.
+// computes from the real clock and one a test computes from its own clock have the same type. One wait is on the real
+// clock whatever this one says: a call's wait for a compute thread (ThreadPool::run), which is real work progressing.
 #pragma once
 
 #include <chrono>
