@@ -1,5 +1,6 @@
 #include "viewer/gateway.h"
 
+#include <dlfcn.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -369,6 +370,10 @@ absl::Status Gateway::start() {
   if (tls != !options_.tls_key.empty()) return absl::InvalidArgumentError("--tls_cert and --tls_key go together");
   if (tls) {
     if (!mg_check_feature(2)) return absl::FailedPreconditionError("this civetweb library was built without TLS");
+    // Before civetweb opens "libssl.so" (viewer/openssl3_shim.c says why): beside the program.
+    const std::filesystem::path shim = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path() / "libss-viewer-ssl.so";
+    if (!dlopen(shim.c_str(), RTLD_NOW | RTLD_GLOBAL))
+      return absl::NotFoundError(absl::StrCat("HTTPS needs ", shim.string(), " (built beside the viewer): ", dlerror()));
     // civetweb reads the key and the certificate chain from one PEM file: the two, joined, readable by us only.
     std::string pem;
     for (const std::string& f : {options_.tls_key, options_.tls_cert}) {

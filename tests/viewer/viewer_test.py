@@ -15,6 +15,7 @@ from scenestreamer.v1 import simulator_pb2 as pb  # noqa: E402
 from scenestreamer.v1 import simulator_pb2_grpc as rpc  # noqa: E402
 
 from browser import Browser  # noqa: E402
+from pki import Pki  # noqa: E402
 from viewer_process import Viewer  # noqa: E402
 import synthetic  # noqa: E402
 
@@ -278,6 +279,46 @@ class TokenTest(unittest.TestCase):
         page.wait("window.__viewer.error().includes('NOT_FOUND')")
         page.eval(f"location.hash = 'watch={self.alice}'")
         page.wait("window.__viewer.ticksDrawn.length >= 1")
+
+
+class TlsTest(unittest.TestCase):
+    """TLS on both sides: the viewer checks the server's certificate (--tls_root) and serves HTTPS and WSS."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.pki = Pki()
+        cls.server = Server(f"--tls_cert={cls.pki.path('server.pem')}", f"--tls_key={cls.pki.path('server.key')}",
+                            tls_root=cls.pki.read("ca.pem")).start()
+        cls.viewer = Viewer(cls.server.target, f"--scenario_dir={DATA}", f"--tls_root={cls.pki.path('ca.pem')}",
+                            f"--tls_cert={cls.pki.path('server.pem')}", f"--tls_key={cls.pki.path('server.key')}").start()
+        cls.browser = Browser()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.browser.close()
+        cls.viewer.stop()
+        cls.server.stop()
+        cls.pki.close()
+
+    def test_https_page_lists_and_watches_over_tls(self):
+        self.assertTrue(self.viewer.url.startswith("https://"), self.viewer.url)
+        names = [s.name for s in self.server.stub.ListScenarios(pb.ListScenariosRequest()).scenarios]
+        r = self.server.stub.CreateSession(pb.CreateSessionRequest(scenario_name=names[0]))
+        self.addCleanup(error_of, self.server.stub.CloseSession, pb.CloseSessionRequest(session_id=r.session_id))
+        page = self.browser.open(f"{self.viewer.url}#watch={r.session_id}")
+        page.wait("document.querySelectorAll('#sessions tbody tr').length === 1")
+        page.wait("window.__viewer.ticksDrawn.includes(0)")
+        self.assertEqual(page.eval("location.protocol"), "https:")
+        self.assertEqual(page.eval("window.__viewer.agentsPerTick[0]"), len(r.initial.agents))
+
+    def test_a_plaintext_viewer_in_front_of_a_tls_server_says_it_cannot_reach_it(self):
+        plain = Viewer(self.server.target, f"--scenario_dir={DATA}").start()
+        try:
+            page = self.browser.open(plain.url)
+            page.wait("window.__viewer.error().includes('UNAVAILABLE')")
+            self.assertIn(self.server.target, page.eval("window.__viewer.error()"))
+        finally:
+            plain.stop()
 
 
 if __name__ == "__main__":

@@ -32,6 +32,8 @@ async function run(cmd) {
       if (!context)
         context = await chromium.launchPersistentContext(profile, {
           executablePath: CHROMIUM, headless: true, args: FLAGS,
+          // The TLS tests serve the page with a certificate of a CA made for the test (loopback only).
+          ignoreHTTPSErrors: true,
           viewport: { width: cmd.width || 1280, height: cmd.height || 800 },
         });
       const page = pages.length === 0 && context.pages().length ? context.pages()[0] : await context.newPage();
