@@ -21,6 +21,7 @@ COPY training /src/training
 COPY bench /src/bench
 COPY tests /src/tests
 COPY python /src/python
+COPY viewer /src/viewer
 WORKDIR /src
 # ON: -march=native (only for hosts like the build machine); OFF: -march=x86-64-v3, runs on any AVX2 x86-64.
 ARG NATIVE=OFF
