@@ -321,5 +321,36 @@ class TlsTest(unittest.TestCase):
             plain.stop()
 
 
+class CommandLineTest(unittest.TestCase):
+    """Bad flags stop the viewer at start-up with what was wrong."""
+
+    def run_viewer(self, *flags):
+        from viewer_process import VIEWER
+        return subprocess.run([VIEWER, "--port=0", *flags], capture_output=True, text=True, timeout=60)
+
+    def test_bad_flags_are_named(self):
+        d = tempfile.mkdtemp(prefix="ss-viewer-cli-")
+        self.addCleanup(subprocess.run, ["rm", "-rf", d], check=False)
+        cases = [
+            (["--port=70000"], "--port 70000 is not in 0..65535"),
+            (["--threads=1"], "--threads must be in 2..1024"),
+            ([f"--scenario_dir={d}/missing"], f"--scenario_dir: "),
+            ([f"--web_dir={d}"], f"--web_dir {d} holds no index.html"),
+            (["--tls_cert=x.pem"], "--tls_cert and --tls_key go together"),
+            (["--tls_root=/nonexistent/ca.pem"], "--tls_root /nonexistent/ca.pem: cannot read it"),
+            (["--tls_server_name=x"], "--tls_client_cert and --tls_server_name need --tls_root"),
+        ]
+        for flags, message in cases:
+            r = self.run_viewer(f"--scenario_dir={DATA}", *flags)
+            self.assertEqual(r.returncode, 1, (flags, r.stderr))
+            self.assertIn(message, r.stderr + r.stdout, flags)
+
+    def test_help_lists_the_flags(self):
+        r = self.run_viewer("--help")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for flag in ("--target", "--tls_root", "--tls_cert", "--scenario_dir", "--web_dir"):
+            self.assertIn(flag, r.stdout)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -269,9 +269,17 @@ function fileScene(): { scene: Scene; label: string; ego: Agent | null } {
   const agents: Agent[] = [];
   const trailMap = new Map<number, number[]>();
   let ego: Agent | null = null;
+  const leavingAgents: Agent[] = [];
   for (const t of primary.tracks) {
     const a = trackAgent(t, frame);
-    if (!a) continue;
+    if (!a) {
+      // Left within the last LEAVING_TICKS frames: drawn at its last pose.
+      for (let k = frame - 1; k >= Math.max(0, frame - LEAVING_TICKS); --k) {
+        const last = trackAgent(t, k);
+        if (last) { leavingAgents.push(last); break; }
+      }
+      continue;
+    }
     if (t.id === primary.sdc) { a[8] |= Flag.controlled; ego = a; }
     agents.push(a);
     const pts: number[] = [];
@@ -293,7 +301,7 @@ function fileScene(): { scene: Scene; label: string; ego: Agent | null } {
     }
   const time = primary.timestamps[frame] - primary.timestamps[0];
   const label = `${g.id}  frame ${frame}/${primary.timestamps.length - 1} (t ${time.toFixed(1)} s${frame <= primary.current ? ", logged" : ", simulated"})  agents ${agents.length}`;
-  return { scene: { map: primary.map, agents, lights: primary.lights[frame] ?? [], trails: trailMap, leaving: [], ghosts, overlays }, label, ego };
+  return { scene: { map: primary.map, agents, lights: primary.lights[frame] ?? [], trails: trailMap, leaving: leavingAgents, ghosts, overlays }, label, ego };
 }
 
 // --- drawing -----------------------------------------------------------------------------------------------------
