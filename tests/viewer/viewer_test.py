@@ -104,6 +104,38 @@ class LiveTest(unittest.TestCase):
         self.assertEqual(page.eval("window.__viewer.lastDrawn.tick"), tick.tick)
         self.assertEqual(page.eval("window.__viewer.error()"), "")
 
+    def test_events_flagged_on_the_page_are_the_engines(self):
+        """The page's flags for the ego equal StepScene's events for it (the engine's rules, computed by the server),
+        over ticks that include an overlap forced with StateForce."""
+        r = self.create(scenario_name=self.names[0], seed=14)
+        page = self.browser.open(f"{self.viewer.url}#watch={r.session_id}")
+        page.wait("window.__viewer.ticksDrawn.includes(0)")
+        tick = r.initial
+        ego = next(a for a in tick.agents if a.controlled)
+        other = next(a for a in tick.agents if not a.controlled)
+        seen_overlap = False
+        for i in range(4):
+            pose = ego_pose(tick)
+            if i == 2:  # the other agent onto the ego's next pose
+                me = next(a for a in tick.agents if a.controlled).state
+                self.server.stub.StateForce(pb.StateForceRequest(session_id=r.session_id, agents=[pb.ForcedAgent(
+                    agent_id=other.id, state=pb.AgentState(x=pose.x, y=pose.y, heading=pose.heading, vx=me.vx,
+                                                           vy=me.vy, length=me.length, width=me.width,
+                                                           height=me.height))]))
+            tick = self.server.stub.StepScene(pb.StepSceneRequest(session_id=r.session_id, poses=[pose])).ticks[-1]
+            page.wait(f"window.__viewer.ticksDrawn.includes({tick.tick})")
+            flags = {int(k): v for k, v in page.eval(f"window.__viewer.flagsPerTick[{tick.tick}]").items()}
+            events = next(e for e in tick.events if e.agent_id == ego.id)
+            f = flags.get(ego.id, 0)
+            self.assertTrue(f & 1, f"tick {tick.tick}: the ego is drawn as controlled")
+            self.assertEqual(bool(f & 4), len(events.overlapping) > 0, f"tick {tick.tick}: overlap {flags}")
+            self.assertEqual(bool(f & 8), events.off_road, f"tick {tick.tick}: off road")
+            self.assertEqual(bool(f & 16), events.ran_red_light, f"tick {tick.tick}: red light")
+            for other_id in events.overlapping:
+                self.assertTrue(flags.get(other_id, 0) & 4, f"tick {tick.tick}: agent {other_id} overlaps the ego")
+            seen_overlap |= len(events.overlapping) > 0
+        self.assertTrue(seen_overlap, "the forced overlap did not happen: the test checked no positive")
+
     def test_pause_holds_the_picture_and_resume_shows_the_latest_tick(self):
         r = self.create(scenario_name=self.names[0], seed=12)
         page = self.browser.open(f"{self.viewer.url}#watch={r.session_id}")

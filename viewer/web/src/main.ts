@@ -38,6 +38,8 @@ const hooks = {
   ticksReceived: [] as number[],
   ticksDrawn: [] as number[],
   agentsPerTick: {} as Record<number, number>,
+  // Per tick drawn: the flags (events and roles) of every agent with any, by id.
+  flagsPerTick: {} as Record<number, Record<number, number>>,
   sessions: () => sessions,
   error: () => ($("error").hidden ? "" : $("error").textContent ?? ""),
   mode: () => mode,
@@ -142,6 +144,7 @@ function watch(id: string) {
   hooks.ticksReceived = [];
   hooks.ticksDrawn = [];
   hooks.agentsPerTick = {};
+  hooks.flagsPerTick = {};
   follow = true;
   $<HTMLInputElement>("follow").checked = true;
   $("scrub-box").hidden = true;
@@ -335,6 +338,9 @@ function draw() {
   if (mode === "live" && lastTick && hooks.ticksDrawn[hooks.ticksDrawn.length - 1] !== tick) {
     hooks.ticksDrawn.push(tick);
     hooks.agentsPerTick[tick] = drawn;
+    const flags: Record<number, number> = {};
+    for (const a of lastTick.agents) if (a[8]) flags[a[0]] = a[8];
+    hooks.flagsPerTick[tick] = flags;
   }
   $("status").textContent = label;
 }
