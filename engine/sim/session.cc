@@ -854,6 +854,10 @@ StepResult Session::sub_tick_view(int sub_tick, int ticks_per_step) const {
 size_t Session::memory_bytes() const {
   size_t b = sizeof(*this) + cache_.bytes() + agents_.capacity() * sizeof(Agent) + lights_.capacity() * sizeof(Light);
   for (const Batch& batch : replay_) b += sizeof(Batch) + batch.tokens.capacity() * sizeof(DecoderToken);
+  if (paths_)
+    for (const LoggedPath& p : *paths_)
+      b += sizeof(LoggedPath) + p.points.capacity() * sizeof(Vec2) +
+           (p.s.capacity() + p.heading.capacity()) * sizeof(double) + p.frame.capacity() * sizeof(int);
   return b;
 }
 
