@@ -98,6 +98,9 @@ def ab(args):
     server, viewer = servers(args.scenario_dir)
     ws_url = viewer.url.replace("http", "ws", 1) + "ws/watch"
     results = []
+    # --tabs: the viewers are Chromium tabs of the page (drawing every tick), opened before the runs.
+    browser = Browser() if args.tabs else None
+    tabs = [browser.open(viewer.url, 1280, 800) for _ in range(args.viewers)] if browser else []
     try:
         for run in range(args.runs):
             for viewers in (0, args.viewers):
@@ -113,12 +116,20 @@ def ab(args):
                         ids = [s.session_id for s in server.stub.ListSessions(pb.ListSessionsRequest()).sessions]
                         time.sleep(0.02)
                     watch = [ids[i % len(ids)] for i in range(viewers)]
-                    watchers = subprocess.Popen(["node", "--experimental-websocket", WATCHERS, ws_url, ""] + watch,
-                                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                                                stderr=subprocess.DEVNULL)
-                    watchers.stdout.readline()  # "open"
-                    out = json.loads(proc.communicate()[0])
-                    seen = json.loads(watchers.communicate("")[0])
+                    if tabs:
+                        for page, sid in zip(tabs, watch):
+                            page.eval(f"location.hash = 'watch={sid}'")
+                        out = json.loads(proc.communicate()[0])
+                        seen = {"ticks": [p.eval("window.__viewer.ticksDrawn.length") for p in tabs], "errors": []}
+                        for page in tabs:
+                            page.eval("location.hash = ''; window.__viewer.mode()")
+                    else:
+                        watchers = subprocess.Popen(["node", "--experimental-websocket", WATCHERS, ws_url, ""] + watch,
+                                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                                    stderr=subprocess.DEVNULL)
+                        watchers.stdout.readline()  # "open"
+                        out = json.loads(proc.communicate()[0])
+                        seen = json.loads(watchers.communicate("")[0])
                 else:
                     out = load_run(server.target, args.clients, args.steps, args.densify)
                     seen = None
@@ -130,8 +141,10 @@ def ab(args):
                 results.append(row)
                 print(json.dumps({k: row[k] for k in ("run", "viewers", "steps_per_s", "server_cpu_ms_per_step",
                                                       "viewer_cpu_ms_per_step", "load_average")}), flush=True)
-        print(json.dumps({"results": results, "machine": machine()}, indent=1))
+        print(json.dumps({"results": results, "tabs": bool(tabs), "machine": machine()}, indent=1))
     finally:
+        if browser:
+            browser.close()
         viewer.stop()
         server.stop()
 
@@ -199,6 +212,7 @@ def main():
     a.add_argument("--densify", type=int, default=64)
     a.add_argument("--scenario_dir", default=os.path.join(SOURCE, "..", "shared", "data", "womd", "json", "val"))
     a.add_argument("--viewers", type=int, default=10)
+    a.add_argument("--tabs", action="store_true", help="viewers as Chromium tabs of the page instead of watchers")
     s = sub.add_parser("screenshots")
     s.add_argument("out")
     s.add_argument("--scenario", type=int, default=0)
