@@ -2,7 +2,7 @@
 
   measure.py fps [--agents 300 --roads 2000 --seconds 5 --runs 3]
       frames per second of the page in headless Chromium on a synthetic rollout file (synthetic.py)
-  measure.py ab [--runs 4 --clients 32 --steps 30 --densify 64 --viewers 10 --scenario_dir D]
+  measure.py ab [--runs 4 --clients 32 --steps 30 --densify 64 --viewers 10 --scenario_dir D] [--tabs]
       scenestreamer-load's steps per second against the server with 0 and with N viewers open (WebSocket watchers
       of the load's sessions through the gateway), interleaved; the load of bench/server_ab.sh (docs/performance.md)
       on the real val scenarios by default
