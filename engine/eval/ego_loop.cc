@@ -14,7 +14,6 @@ namespace {
 constexpr double kSlowFactor = 0.6, kFastFactor = 1.3;
 constexpr double kLaneSpacing = 2.0;  // python/scenestreamer/road.py: lane centres resampled every 2 m
 
-Box box_of(const StepState& s) { return {{s.x, s.y, s.heading}, s.length, s.width}; }
 
 double speed_along(const StepState& s) { return s.vx * std::cos(s.heading) + s.vy * std::sin(s.heading); }
 

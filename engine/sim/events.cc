@@ -8,7 +8,6 @@
 namespace ss {
 namespace {
 
-Box box_of(const StepState& s) { return Box{{s.x, s.y, s.heading}, s.length, s.width}; }
 
 }  // namespace
 

@@ -70,7 +70,6 @@ StepState state_from_kin(const KinematicState& k, const StepState& box) {
   return s;
 }
 
-Box box_of(const StepState& s) { return {{s.x, s.y, s.heading}, s.length, s.width}; }
 
 }  // namespace
 

@@ -81,6 +81,16 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
   if (static_cast<int>(num_controlled) > options.max_agents)
     return absl::InvalidArgumentError("more controlled agents than options.max_agents");
 
+  // Lights: the lanes with a signal state at the current frame, by lane id, anchored on their lane's segment.
+  for (const TokenLight& tl : scenario_lights(*scenario, now_frame, s->map_->segments, s->map_->index,
+                                              s->model_->config().light_slots)) {
+    Light l;
+    l.lane = tl.lane;
+    l.map_id = tl.map_id;
+    l.pose = tl.pose;
+    s->lights_.push_back(l);
+  }
+
   if (s->rule_mode()) {
     // No tokens: the controlled agents, then every log agent valid at the current frame (no region of interest: a
     // log replay shows the whole log), each at its logged state.
@@ -99,15 +109,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
       s->agents_.push_back(a);
     }
     s->join_logged_agents();
-    for (const TokenLight& tl : scenario_lights(*scenario, now_frame, s->map_->segments, s->map_->index,
-                                                s->model_->config().light_slots)) {
-      Light l;
-      l.lane = tl.lane;
-      l.map_id = tl.map_id;
-      l.pose = tl.pose;
-      l.state = log_light_state(*scenario, l.lane, now_frame);
-      s->lights_.push_back(l);
-    }
+    for (Light& l : s->lights_) l.state = log_light_state(*scenario, l.lane, now_frame);
     s->plan_rule_agents();
     return s;
   }
@@ -160,16 +162,6 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
   std::vector<int> order(log.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return log[a].first_step < log[b].first_step; });
-
-  // Lights: the lanes with a signal state at the current frame, by lane id, anchored on their lane's segment.
-  for (const TokenLight& tl : scenario_lights(*scenario, now_frame, s->map_->segments, s->map_->index,
-                                              s->model_->config().light_slots)) {
-    Light l;
-    l.lane = tl.lane;
-    l.map_id = tl.map_id;
-    l.pose = tl.pose;
-    s->lights_.push_back(l);
-  }
 
   // The history, teacher-forced; the model samples from the current step on.
   for (int step = from_now ? t0 : 0; step <= t0; ++step) {

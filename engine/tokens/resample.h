@@ -4,6 +4,7 @@
 
 #include <vector>
 
+#include "engine/geometry/geometry.h"
 #include "engine/scenario/scenario.h"
 
 namespace ss {
@@ -22,6 +23,9 @@ struct StepState {
 
   bool operator==(const StepState&) const = default;
 };
+
+// The agent's box on the ground plane.
+inline Box box_of(const StepState& s) { return {{s.x, s.y, s.heading}, s.length, s.width}; }
 
 // Number of 2 Hz steps covering `num_frames` 10 Hz frames (frames 0, 5, 10, ...): 91 -> 19.
 int num_model_steps(int num_frames);
