@@ -9,13 +9,14 @@
 set -eu
 
 # The server's and the health probe's run-time libraries (their other dependencies come with these).
-RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10 libprometheus-cpp-pull1.0 libjemalloc2"
+RUNTIME="libgrpc++1.51 libprotobuf32 libabsl20220623 libspdlog1.10 libprometheus-cpp-pull1.0 libjemalloc2 libhiredis0.14"
 # CMake configures the whole tree (tests and benchmarks too), so their headers are part of a build.
 BUILD="
   build-essential cmake ninja-build pkg-config
   protobuf-compiler libprotobuf-dev
   libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libssl-dev openssl
   libeigen3-dev libabsl-dev libspdlog-dev nlohmann-json3-dev prometheus-cpp-dev libjemalloc-dev libcivetweb-dev
+  libhiredis-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 "
 ALL="$BUILD
@@ -26,6 +27,7 @@ ALL="$BUILD
   sumo sumo-tools
   librsvg2-bin
   nginx haproxy yamllint python3-yaml
+  redis-server
   libtorch-dev libopenblas0-openmp
   python3-torch
   chromium
@@ -36,6 +38,8 @@ ALL="$BUILD
 # them: they pull in ~330 shared libraries. python3-torch (on top of libtorch): the PPO example
 # (client_examples/python/ppo.py) and its test. nginx and haproxy are the session-affine routers (deploy/router/), run by
 # the cluster test; yamllint checks deploy/k8s/.
+# libhiredis-dev (libhiredis0.14 at run time): the server's client of the shared session store (server/session_store.h);
+# redis-server: that store, which the cluster tests start on loopback (tests/integration/redis_process.py).
 # libcivetweb-dev: the viewer's HTTP and WebSocket server (viewer/). chromium: the viewer's browser tests
 # (tests/viewer), driven by playwright-core from npm (the npm step at the end).
 IMAGE="buildah debootstrap"

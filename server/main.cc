@@ -2,6 +2,7 @@
 // bundled sample scenarios (share/scenestreamer beside an installed server's bin/, or the source tree for a server in
 // its build tree: ss::cli::bundled_dir) and serves on 127.0.0.1:50051.
 #include <signal.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstring>
@@ -20,6 +21,7 @@
 #include "server/auth.h"
 #include "server/metrics.h"
 #include "server/session_manager.h"
+#include "server/session_store.h"
 #include "server/simulator_service.h"
 #include "server/tls.h"
 #include "spdlog/spdlog.h"
@@ -42,6 +44,18 @@ ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction a
 ABSL_FLAG(double, snapshot_interval_s, 30,
           "With --snapshot_dir: sessions that changed are saved this often, so a crash loses at most this much "
           "(0: saved only on eviction and SIGTERM)");
+ABSL_FLAG(std::string, session_store, "",
+          "A shared session store, redis://HOST:PORT[/DB] (Debian's redis-server): snapshots go there instead of "
+          "--snapshot_dir, under a lease per session naming its replica, and any replica pointed at it continues any "
+          "session (docs/deployment.md). Empty: none");
+ABSL_FLAG(std::string, session_store_password_file, "",
+          "With --session_store: a file holding the store's password (Redis AUTH; its first line)");
+ABSL_FLAG(std::string, replica_id, "",
+          "With --session_store: this replica's name in its leases, unique among the replicas (the StatefulSet passes "
+          "the pod's name); empty: the host name");
+ABSL_FLAG(int, lease_ms, 5000,
+          "With --session_store: a session's lease lasts this long unless renewed (every quarter of it); a replica "
+          "that dies holds its sessions this long at most");
 ABSL_FLAG(int, max_sessions, 256, "Cap on sessions in memory");
 ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state), MiB");
 ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
@@ -189,8 +203,52 @@ int main(int argc, char** argv) {
                  ss::engine_matmul_precision(**engine), eo.step_threads);
   spdlog::info("{} scenarios from {}", ss::engine_scenarios(**engine).size(), scenario_dir);
 
+  // The shared session store, checked before anything is served: a replica that cannot reach it refuses to start.
+  std::unique_ptr<ss::server::SessionStore> store;
+  if (!absl::GetFlag(FLAGS_session_store).empty()) {
+    if (!absl::GetFlag(FLAGS_snapshot_dir).empty()) {
+      spdlog::critical("cannot start: --snapshot_dir and --session_store both given: with a session store the "
+                       "snapshots go there only (drop --snapshot_dir)");
+      return 1;
+    }
+    ss::server::StoreOptions so;
+    so.url = absl::GetFlag(FLAGS_session_store);
+    so.replica_id = absl::GetFlag(FLAGS_replica_id);
+    if (so.replica_id.empty()) {
+      char host[256] = {};
+      gethostname(host, sizeof(host) - 1);
+      so.replica_id = host;
+    }
+    so.lease_ms = absl::GetFlag(FLAGS_lease_ms);
+    // Sessions no replica holds (theirs died and no call came since) leave the store after the idle timeout.
+    so.retain_ms = static_cast<int64_t>(absl::GetFlag(FLAGS_idle_timeout_s) * 1000) + so.lease_ms;
+    if (const std::string file = absl::GetFlag(FLAGS_session_store_password_file); !file.empty()) {
+      auto text = ss::file_read_all(file);
+      if (!text.ok()) {
+        spdlog::critical("cannot start: --session_store_password_file: {}", std::string(text.status().message()));
+        return 1;
+      }
+      so.password = text->substr(0, text->find_first_of("\r\n"));
+      if (so.password.empty()) {
+        spdlog::critical("cannot start: --session_store_password_file {}: its first line is empty", file);
+        return 1;
+      }
+    }
+    auto connected = ss::server::SessionStore::connect(so);
+    if (!connected.ok()) {
+      spdlog::critical("cannot start: {}", std::string(connected.status().message()));
+      return 1;
+    }
+    store = std::move(*connected);
+    spdlog::info("session store {} (replica '{}', leases of {} ms)", store->where(), so.replica_id, so.lease_ms);
+  } else if (!absl::GetFlag(FLAGS_session_store_password_file).empty()) {
+    spdlog::critical("cannot start: --session_store_password_file without --session_store");
+    return 1;
+  }
+
   ss::server::Metrics metrics;
   ss::server::ManagerOptions mo;
+  mo.session_store = store.get();
   mo.snapshot_dir = absl::GetFlag(FLAGS_snapshot_dir);
   mo.snapshot_interval_s = absl::GetFlag(FLAGS_snapshot_interval_s);
   mo.max_sessions = absl::GetFlag(FLAGS_max_sessions);
@@ -298,6 +356,7 @@ int main(int argc, char** argv) {
   }
   const int saved = sessions.save_all();
   if (!mo.snapshot_dir.empty()) spdlog::info("saved {} sessions to {}", saved, mo.snapshot_dir);
+  if (store) spdlog::info("saved {} sessions to the session store {}, their leases released", saved, store->where());
   spdlog::info("stopped");
   return 0;
 }

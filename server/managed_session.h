@@ -19,6 +19,8 @@
 
 namespace ss::server {
 
+class SessionStore;  // server/session_store.h
+
 struct ManagerOptions {
   std::string snapshot_dir;          // empty: no snapshots (eviction then drops the session)
   double snapshot_interval_s = 30;   // changed sessions are saved this often (0: only on eviction and SIGTERM)
@@ -34,6 +36,9 @@ struct ManagerOptions {
   double malloc_trim_interval_s = 0;
   // Idle timeouts, intervals, deadlines and the reaper's pace read this clock; null: the real one. Not owned.
   const Clock* clock = nullptr;
+  // The shared session store (server/session_store.h) instead of snapshot_dir: snapshots go there, under a lease per
+  // session. Not owned; null: none.
+  SessionStore* session_store = nullptr;
   // False: no reaper thread; the owner calls SessionManager::reap() (tests, with a TestClock, one pass at a time).
   bool reaper_thread = true;
 };
@@ -77,6 +82,9 @@ struct ManagedSession {
   std::deque<TickView> recent;                   // the last ticks, for waiting controllers
   SessionWatchers watchers;                      // WatchSession streams
   bool closed = false;
+  // Handed over to another replica (the shared session store): set under engine_mu, so a call that takes engine_mu
+  // after it never computes on this copy.
+  std::atomic<bool> moved{false};
 
   void touch() { last_used = std::chrono::nanoseconds(clock.now().time_since_epoch()).count(); }
   // 0 while a call is in progress: a call that waits (for a compute thread under load, or for the other controllers
@@ -96,6 +104,11 @@ struct ManagedSession {
     recent.push_back({tick, v});
     while (recent.size() > 64) recent.pop_front();
     watchers.publish(recent.back());
+  }
+  // For a call that holds engine_mu: UNAVAILABLE once the session moved to another replica (the retry reaches it).
+  absl::Status check_not_moved() const {
+    if (!moved) return absl::OkStatus();
+    return absl::UnavailableError("session '" + id + "' moved to another replica while this call waited; retry the call");
   }
   // Marks the session closed: waiting controllers wake, watchers end. Holds mu.
   void close_locked() {

@@ -171,6 +171,7 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
     std::unique_lock<std::timed_mutex> e(s.engine_mu, std::defer_lock);
     if (!e.try_lock_until(deadline))
       return absl::DeadlineExceededError("the call's deadline passed while the session was busy");
+    if (auto st = s.check_not_moved(); !st.ok()) return st;  // [session store]
     return run_ticks(s, taken, num_ticks, deadline, cancelled, o);
   });
   if (out.ok()) s.touch();
@@ -187,6 +188,7 @@ absl::StatusOr<std::vector<int64_t>> SessionManager::inject(const std::string& i
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
+  if (auto st = s.check_not_moved(); !st.ok()) return st;  // [session store]
   std::vector<int64_t> ids;
   absl::Status st = compute(deadline, [&] {
     auto r2 = session_inject(*s.session, r);
@@ -222,6 +224,7 @@ absl::Status SessionManager::state_force(const std::string& id, const std::strin
   std::unique_lock<std::timed_mutex> e(s.engine_mu, std::try_to_lock);
   if (!e.owns_lock())
     return absl::AbortedError(absl::StrCat("session '", id, "' is busy with another call; calls are serialised"));
+  if (auto st = s.check_not_moved(); !st.ok()) return st;  // [session store]
   absl::Status st = session_force(*s.session, r);
   if (st.ok()) ++s.changes;
   return st;
@@ -258,6 +261,7 @@ absl::StatusOr<std::string> SessionManager::fork(const std::string& id, const st
   {
     std::unique_lock<std::timed_mutex> e(s.engine_mu, std::defer_lock);
     if (!e.try_lock_until(deadline)) return absl::DeadlineExceededError("the session stayed busy past the deadline");
+    if (auto st = s.check_not_moved(); !st.ok()) return st;  // [session store]
     absl::Status st = compute(deadline, [&] {
       f->session = session_fork(*s.session);
       return absl::OkStatus();

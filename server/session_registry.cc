@@ -21,7 +21,14 @@ SessionRegistry::SessionRegistry(Engine& engine, const ManagerOptions& options, 
       clock_(clock),
       compute_(std::move(compute)),
       last_save_(clock.now()),
-      last_trim_(clock.now()) {}
+      last_trim_(clock.now()) {
+  // [session store] the lease keeper, with its hooks into this registry (server/session_registry_store.cc).
+  if (options_.session_store)
+    leases_ = std::make_unique<LeaseKeeper>(
+        *options_.session_store,
+        LeaseKeeper::Hooks{[this](const std::string& id) { return hand_over(id); },
+                           [this](const std::string& id, const std::string& owner) { lease_lost(id, owner); }});
+}
 
 SessionRegistry::~SessionRegistry() {
   {
@@ -31,6 +38,7 @@ SessionRegistry::~SessionRegistry() {
   stopping_ = true;
   reaper_cv_.notify_all();
   if (reaper_.joinable()) reaper_.join();
+  leases_.reset();  // [session store] its thread calls into the registry
 }
 
 void SessionRegistry::start_reaper() {
@@ -80,17 +88,25 @@ absl::StatusOr<std::string> SessionRegistry::reserve_id(const std::string& propo
 }
 
 absl::Status SessionRegistry::insert(const std::shared_ptr<ManagedSession>& s, bool refuse_when_draining) {
+  if (leases_ && !(refuse_when_draining && draining_))  // [session store] the id cluster-wide, first snapshot
+    if (auto st = claim_in_store(*s); !st.ok()) return st;
   std::lock_guard<std::mutex> l(mu_);
+  absl::Status st;
   if (refuse_when_draining && draining_)
-    return absl::UnavailableError("the server is draining (shutting down): no new sessions");
-  if (sessions_.count(s->id))
-    return absl::AlreadyExistsError(absl::StrCat("session_id ", echo_id(s->id), " is already in use"));
-  if (auto st = make_room_locked(s->bytes); !st.ok()) return st;
+    st = absl::UnavailableError("the server is draining (shutting down): no new sessions");
+  else if (sessions_.count(s->id))
+    st = absl::AlreadyExistsError(absl::StrCat("session_id ", echo_id(s->id), " is already in use"));
+  else
+    st = make_room_locked(s->bytes);
+  if (!st.ok()) {
+    if (leases_) (void)leases_->remove(s->id);  // [session store] not listed after all
+    return st;
+  }
   sessions_[s->id] = s;
   return absl::OkStatus();
 }
 
-absl::Status SessionRegistry::save(ManagedSession& s) {
+Snapshot SessionRegistry::snapshot_of(ManagedSession& s) {
   Snapshot snap;
   snap.session_id = s.id;
   snap.source = s.source;
@@ -101,8 +117,14 @@ absl::Status SessionRegistry::save(ManagedSession& s) {
     snap.controllers.assign(s.controller_of.begin(), s.controller_of.end());
   }
   snap.session_bytes = session_save(*s.session);
+  return snap;
+}
+
+absl::Status SessionRegistry::save(ManagedSession& s, bool release) {
   const uint64_t changes = s.changes;
-  absl::Status st = write_snapshot(options_.snapshot_dir, snap);
+  const Snapshot snap = snapshot_of(s);
+  absl::Status st = leases_ ? leases_->put(s.id, encode_snapshot(snap), release)  // [session store]
+                            : write_snapshot(options_.snapshot_dir, snap);
   if (st.ok()) s.saved_changes = changes;
   return st;
 }
@@ -110,7 +132,10 @@ absl::Status SessionRegistry::save(ManagedSession& s) {
 absl::Status SessionRegistry::evict_locked(const std::shared_ptr<ManagedSession>& s) {
   std::unique_lock<std::timed_mutex> e(s->engine_mu, std::try_to_lock);
   if (!e.owns_lock()) return absl::AbortedError("busy");
-  if (!options_.snapshot_dir.empty()) {
+  if (leases_) {  // [session store] saved there with its lease given up: restored by the next call, here or elsewhere
+    if (auto st = save(*s, /*release=*/true); !st.ok()) return st;
+    s->moved = true;
+  } else if (!options_.snapshot_dir.empty()) {
     if (auto st = save(*s); !st.ok()) return st;
     evicted_[s->id] = s->tenant;
   }
@@ -164,6 +189,7 @@ absl::Status SessionRegistry::room_to_grow(ManagedSession& s) {
 
 absl::StatusOr<std::shared_ptr<ManagedSession>> SessionRegistry::find(const std::string& id,
                                                                       const std::string& tenant, TimePoint deadline) {
+  if (leases_) return find_in_store(id, tenant, deadline);  // [session store]
   {
     std::lock_guard<std::mutex> l(mu_);
     auto it = sessions_.find(id);
@@ -224,6 +250,7 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionRegistry::restore_from(Sn
 }
 
 absl::Status SessionRegistry::close(const std::string& id, const std::string* tenant) {
+  if (leases_) return close_in_store(id, tenant);  // [session store]
   std::shared_ptr<ManagedSession> s;
   {
     std::lock_guard<std::mutex> l(mu_);
@@ -272,7 +299,7 @@ void SessionRegistry::start_draining() {
 }
 
 int SessionRegistry::save_all() {
-  if (options_.snapshot_dir.empty()) return 0;
+  if (options_.snapshot_dir.empty() && !leases_) return 0;
   std::vector<std::shared_ptr<ManagedSession>> all;
   {
     std::lock_guard<std::mutex> l(mu_);
@@ -281,7 +308,8 @@ int SessionRegistry::save_all() {
   int saved = 0;
   for (const auto& s : all) {
     std::lock_guard<std::timed_mutex> e(s->engine_mu);
-    if (auto st = save(*s); !st.ok()) {
+    // [session store] with its lease given up, so another replica takes it at once
+    if (auto st = save(*s, /*release=*/leases_ != nullptr); !st.ok()) {
       spdlog::error("session {}: snapshot failed: {}", s->id, std::string(st.message()));
       continue;
     }
@@ -360,7 +388,8 @@ void SessionRegistry::save_changed() {
       std::lock_guard<std::mutex> l(s->mu);
       closed = s->closed;
     }
-    if (closed && !evicted_contains(s->id)) remove_snapshot(options_.snapshot_dir, s->id);
+    // [session store] a put after a close is refused there (the close removed the lease's epoch)
+    if (closed && !leases_ && !evicted_contains(s->id)) remove_snapshot(options_.snapshot_dir, s->id);
   }
   if (saved) spdlog::debug("background snapshots: {} sessions saved", saved);
 }
@@ -384,7 +413,7 @@ void SessionRegistry::reap() {
                   -static_cast<double>(released) / (1 << 20),
                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
-  if (!options_.snapshot_dir.empty() && options_.snapshot_interval_s > 0 &&
+  if ((!options_.snapshot_dir.empty() || leases_) && options_.snapshot_interval_s > 0 &&
       clock_.now() - last_save_ >= std::chrono::duration<double>(options_.snapshot_interval_s)) {
     save_changed();
     last_save_ = clock_.now();

@@ -18,6 +18,7 @@
 #include "engine/scenestreamer.h"
 #include "server/managed_session.h"
 #include "server/metrics.h"
+#include "server/session_leases.h"
 #include "server/snapshot.h"
 
 namespace ss::server {
@@ -71,12 +72,27 @@ class SessionRegistry {
   // fit under the caps; RESOURCE_EXHAUSTED when they cannot. Holds mu_.
   absl::Status make_room_locked(uint64_t extra_bytes, int extra_sessions = 1, const ManagedSession* keep = nullptr);
   absl::Status evict_locked(const std::shared_ptr<ManagedSession>& s);
-  absl::Status save(ManagedSession& s);
+  // Saves `s` to the snapshot directory or the session store (with `release`, giving up its lease there).
+  absl::Status save(ManagedSession& s, bool release = false);
+  Snapshot snapshot_of(ManagedSession& s);
   absl::StatusOr<std::shared_ptr<ManagedSession>> restore_from(Snapshot snap, TimePoint deadline);
   // Saves every session that changed since its last snapshot (the background snapshots).
   void save_changed();
   bool evicted_contains(const std::string& id);
   uint64_t held_bytes_locked() const;
+
+  // --- The shared session store (server/session_registry_store.cc; only with ManagerOptions::session_store) ---
+  // find() and close() for sessions that may be held by another replica, or by none since one died.
+  absl::StatusOr<std::shared_ptr<ManagedSession>> find_in_store(const std::string& id, const std::string& tenant,
+                                                                TimePoint deadline);
+  absl::Status close_in_store(const std::string& id, const std::string* tenant);
+  // A new session's lease and first snapshot (ALREADY_EXISTS when another replica has the id).
+  absl::Status claim_in_store(ManagedSession& s);
+  // The lease keeper's hooks: another replica asked for `id` / took it.
+  bool hand_over(const std::string& id);
+  void lease_lost(const std::string& id, const std::string& owner);
+  // Takes `s` out of this replica's memory (moved or stale), leaving the store's copy alone.
+  void drop_local(const std::shared_ptr<ManagedSession>& s, const char* why);
 
   Engine& engine_;
   const ManagerOptions& options_;
@@ -94,6 +110,9 @@ class SessionRegistry {
   bool stop_ = false;  // under reaper_mu_
   std::atomic<bool> stopping_{false};
   std::thread reaper_;
+  // The store's side (server/session_registry_store.cc). Last, so its thread stops before the members it uses.
+  std::map<std::string, std::string> lost_;  // id -> the replica that took its lease; under mu_
+  std::unique_ptr<LeaseKeeper> leases_;
 };
 
 }  // namespace ss::server

@@ -25,9 +25,8 @@ absl::StatusOr<std::string> snapshot_path(const std::string& dir, const std::str
   return (std::filesystem::path(dir) / (session_id + kSuffix)).string();
 }
 
-absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
-  auto path = snapshot_path(dir, s.session_id);
-  if (!path.ok()) return path.status();
+// --- encode_snapshot / decode_snapshot: the bytes alone, for the file and the session store ---
+std::string encode_snapshot(const Snapshot& s) {
   state::Snapshot m;
   m.set_session_id(s.session_id);
   m.set_tenant(s.tenant);
@@ -40,23 +39,15 @@ absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   m.set_womd_bytes(s.source.womd_bytes);
   m.set_tick_deadline_ms(s.tick_deadline_ms);
   m.set_session_state(s.session_bytes);
-  const std::string out = record_write(kFormat, m.SerializeAsString());
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) return absl::InternalError(absl::StrCat("snapshot directory ", dir, " cannot be created: ", ec.message()));
-  return file_write_atomically(*path, out);
+  return record_write(kFormat, m.SerializeAsString());
 }
 
-absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string& session_id) {
-  auto path = snapshot_path(dir, session_id);
-  if (!path.ok()) return path.status();
-  auto bytes = file_read_all(*path);
-  if (!bytes.ok()) return absl::Status(bytes.status().code(), absl::StrCat("snapshot ", bytes.status().message()));
-  auto bad = [&](const std::string& what) { return absl::DataLossError(absl::StrCat("snapshot ", *path, ": ", what)); };
-  const std::string where = absl::StrCat("snapshot ", *path);
+absl::StatusOr<Snapshot> decode_snapshot(const std::string& bytes, const std::string& session_id,
+                                         const std::string& where) {
+  auto bad = [&](const std::string& what) { return absl::DataLossError(absl::StrCat(where, ": ", what)); };
   RecordFormat format = kFormat;
   format.what = where;
-  auto message = record_read(format, *bytes);
+  auto message = record_read(format, bytes);
   if (!message.ok()) {
     if (message.status().code() == absl::StatusCode::kInvalidArgument)  // not a snapshot at all: its content is lost
       return absl::DataLossError(message.status().message());
@@ -81,6 +72,25 @@ absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string
   s.tick_deadline_ms = m.tick_deadline_ms();
   s.session_bytes = m.session_state();
   return s;
+}
+// --- end of encode_snapshot / decode_snapshot ---
+
+absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
+  auto path = snapshot_path(dir, s.session_id);
+  if (!path.ok()) return path.status();
+  const std::string out = encode_snapshot(s);
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return absl::InternalError(absl::StrCat("snapshot directory ", dir, " cannot be created: ", ec.message()));
+  return file_write_atomically(*path, out);
+}
+
+absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string& session_id) {
+  auto path = snapshot_path(dir, session_id);
+  if (!path.ok()) return path.status();
+  auto bytes = file_read_all(*path);
+  if (!bytes.ok()) return absl::Status(bytes.status().code(), absl::StrCat("snapshot ", bytes.status().message()));
+  return decode_snapshot(*bytes, session_id, absl::StrCat("snapshot ", *path));
 }
 
 std::vector<std::string> list_snapshots(const std::string& dir) {

@@ -23,6 +23,13 @@ struct Snapshot {
   std::string session_bytes;  // Session::save(): the engine's state, its tick clock included
 };
 
+// The snapshot's bytes, as the file holds them and the shared session store (server/session_store.h) too.
+std::string encode_snapshot(const Snapshot& s);
+// The snapshot of `session_id` from its bytes; `where` names their place in errors (DATA_LOSS for corrupt bytes,
+// FAILED_PRECONDITION for another format version).
+absl::StatusOr<Snapshot> decode_snapshot(const std::string& bytes, const std::string& session_id,
+                                         const std::string& where);
+
 // INVALID_ARGUMENT for an id that breaks the session id rule (so no id names a file outside `dir`).
 absl::StatusOr<std::string> snapshot_path(const std::string& dir, const std::string& session_id);
 absl::Status write_snapshot(const std::string& dir, const Snapshot& s);
