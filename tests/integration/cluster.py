@@ -160,3 +160,115 @@ class Cluster:
 
     def __exit__(self, *exc):
         self.stop()
+
+
+SERVER_LINE = re.compile(r"^(\s*)server scenestreamer-\d+\.scenestreamer:50051( [^;]*)?;\n", re.M)
+
+
+def render_nginx_replicas(upstreams, listen_port):
+    """deploy/router/nginx.conf for any number of replicas: its upstream server lines replaced by one line per address
+    in `upstreams` (each with the file's own parameters), and its listen port."""
+    with open(NGINX_CONF) as f:
+        text = f.read()
+    lines = list(SERVER_LINE.finditer(text))
+    if not lines:
+        raise RuntimeError(f"{NGINX_CONF}: no 'server scenestreamer-N.scenestreamer:50051' lines")
+    indent, params = lines[0].group(1), lines[0].group(2) or ""
+    block = "".join(f"{indent}server {u}{params};\n" for u in upstreams)
+    text = text[:lines[0].start()] + block + text[lines[-1].end():]
+    text, n = LISTEN.subn(f"listen 127.0.0.1:{listen_port} http2;", text)
+    if n != 1:
+        raise RuntimeError(f"{NGINX_CONF}: expected one 'listen 8080 http2;', found {n}")
+    return text
+
+
+class StoreCluster:
+    """Replicas sharing one real redis-server (tests/integration/redis_process.py) as their session store, named
+    r0, r1, ..., behind nginx with deploy/router/nginx.conf; replicas come and go, and the router's list is rewritten
+    and reloaded (`nginx -s reload`) as an operator would."""
+
+    def __init__(self, replicas=3, flags=()):
+        from redis_process import Redis
+        self.dir = tempfile.mkdtemp(prefix="ss-it-store-cluster-")
+        self.redis = Redis()
+        self.flags = list(flags)
+        self.servers = {}
+        self.count = 0
+        self.initial = replicas
+        self.router_port = free_port()
+        self.prefix = os.path.join(self.dir, "router") + "/"
+        self.nginx = None
+
+    def new_replica(self):
+        name = f"r{self.count}"
+        self.count += 1
+        self.servers[name] = Server(f"--session_store={self.redis.url}", f"--replica_id={name}", *self.flags).start()
+        return name
+
+    def write_router(self, names):
+        with open(os.path.join(self.prefix, "nginx.conf"), "w") as f:
+            f.write(render_nginx_replicas([self.servers[n].target for n in names], self.router_port))
+        self.routed = list(names)
+
+    def reload_router(self, names):
+        """The router's list becomes `names`, and nginx reloads it (new workers; the old ones finish their calls)."""
+        self.write_router(names)
+        conf = os.path.join(self.prefix, "nginx.conf")
+        subprocess.run(["nginx", "-p", self.prefix, "-c", conf, "-e", "stderr", "-s", "reload"], check=True,
+                       capture_output=True, timeout=30)
+
+    def start(self):
+        self.redis.start()
+        for _ in range(self.initial):
+            self.new_replica()
+        os.mkdir(self.prefix)
+        self.write_router(sorted(self.servers))
+        conf = os.path.join(self.prefix, "nginx.conf")
+        self.nginx_log = open(os.path.join(self.prefix, "nginx.log"), "w")
+        self.nginx = subprocess.Popen(["nginx", "-p", self.prefix, "-c", conf, "-e", "stderr"], stdout=self.nginx_log,
+                                      stderr=subprocess.STDOUT)
+        self.channel = grpc.insecure_channel(self.target)
+        self.stub = rpc.SimulatorStub(self.channel)
+        deadline = time.time() + 30
+        while True:
+            try:
+                self.stub.ListScenarios(pb.ListScenariosRequest(), timeout=5)
+                return self
+            except grpc.RpcError:
+                if self.nginx.poll() is not None or time.time() > deadline:
+                    raise RuntimeError("nginx did not start:\n" + self.router_output())
+                time.sleep(0.2)
+
+    @property
+    def target(self):
+        return f"127.0.0.1:{self.router_port}"
+
+    def router_output(self):
+        with open(os.path.join(self.prefix, "nginx.log")) as f:
+            return f.read()
+
+    def holders(self):
+        """{session id: [replica names holding it]} over the live replicas, asked directly."""
+        out = {}
+        for name, s in self.servers.items():
+            if s.proc.poll() is None:
+                for x in s.stub.ListSessions(pb.ListSessionsRequest(), timeout=30).sessions:
+                    out.setdefault(x.session_id, []).append(name)
+        return out
+
+    def stop(self):
+        if self.nginx and self.nginx.poll() is None:
+            self.nginx.terminate()
+            self.nginx.wait(30)
+            self.nginx_log.close()
+        for s in self.servers.values():
+            if s.proc and s.proc.poll() is None:
+                s.terminate()
+        self.redis.stop()
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
