@@ -192,11 +192,14 @@ void LeaseKeeper::renew_all() {
                  owner.empty() ? std::string(" (closed or expired)") : absl::StrCat(" to replica '", owner, "'"));
     hooks_.lost(id, owner);
   }
+  // Hand-overs wait for a busy session's call to end: they stop a quarter of a lease after the renewal, so the next
+  // renewal is never late; the rest are still wanted at the next pass.
   for (const std::string& id : wanted) {
     {
       std::lock_guard<std::mutex> l(mu_);
       if (stop_) return;
     }
+    if (SteadyClock::now() - sent > lease() / 4) break;
     if (hooks_.hand_over(id)) spdlog::info("session {}: handed over (another replica asked for it)", id);
   }
 }
