@@ -3,6 +3,7 @@
 // one.
 #include "server/session_store.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <signal.h>
@@ -73,8 +74,13 @@ class StoreTest : public ::testing::Test {
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
-    ASSERT_EQ(posix_spawnp(&pid_, "redis-server", nullptr, nullptr, argv.data(), environ), 0)
-        << "redis-server (Debian's redis-server package) is not on PATH";
+    // Its log would bury the test's own output.
+    posix_spawn_file_actions_t quiet;
+    posix_spawn_file_actions_init(&quiet);
+    posix_spawn_file_actions_addopen(&quiet, 1, "/dev/null", O_WRONLY, 0);
+    const int spawned = posix_spawnp(&pid_, "redis-server", &quiet, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&quiet);
+    ASSERT_EQ(spawned, 0) << "redis-server (Debian's redis-server package) is not on PATH";
     for (int i = 0; i < 200 && !a_; ++i) {
       auto s = SessionStore::connect(options("a"));
       if (s.ok()) a_ = std::move(*s);
