@@ -8,9 +8,12 @@ loopback, under load: 48 sessions stepping back to back through the router, each
   SIGTERM): no session lost, no tick lost (a moved session is handed over, not restored from an old snapshot), and no
   error but a retried UNAVAILABLE; about 1/4 of the sessions move to the added replica.
 
-SS_CLUSTER_STEP_PAUSE_S (default 0: back to back) pauses each client between its steps."""
+SS_CLUSTER_STEP_PAUSE_S (default 0: back to back) pauses each client between its steps. Back to back, the kill -9
+promise needs background snapshots of busy sessions (issue 50's first defect: the periodic snapshot skips a session
+whose lock a call holds); with a pause of 2 s it holds without them."""
 import collections
 import os
+import re
 import threading
 import time
 import unittest
@@ -50,7 +53,7 @@ class Load:
                 return fn()
             except grpc.RpcError as e:
                 if e.code() == C.UNAVAILABLE:
-                    self.retried[e.details()[:90]] += 1
+                    self.retried[re.sub(r"session '[^']*'", "session S", e.details())[:90]] += 1
                     time.sleep(0.05)
                     continue
                 self.errors.append((sid, e.code(), e.details()))
@@ -128,34 +131,40 @@ class ClusterStoreTest(unittest.TestCase):
             load.stop()
         self.assertEqual(load.errors, [], "errors other than UNAVAILABLE")
         self.assertGreaterEqual(after_kill, 3, f"sessions stalled after the kill: {load.steps_since(killed_at)}")
-        lost, ages, per_interval = {}, {}, {}
+        # Every figure first, then the checks, so that a failing run still prints what it measured.
+        lost, ages, per_interval, from_scratch, wrong = {}, {}, {}, [], []
         for sid in load.ids:
             acks, jumps = load.acks[sid], load.jumps[sid]
             if sid not in mine:
-                self.assertEqual(jumps, [], f"{sid} was not on the killed replica, yet its ticks jumped")
+                if jumps:
+                    wrong.append(f"{sid} was not on the killed replica, yet its ticks jumped: {jumps}")
                 continue
-            self.assertLessEqual(len(jumps), 1, f"{sid}: {jumps}")
+            per_interval[sid] = sum(1 for t, _ in acks if killed_at - INTERVAL_S < t <= killed_at)
+            if len(jumps) > 1:
+                wrong.append(f"{sid} jumped more than once: {jumps}")
             if not jumps:  # its last snapshot held its last tick (it was idle since): nothing lost
                 lost[sid], ages[sid] = 0, 0.0
-                per_interval[sid] = sum(1 for t, _ in acks if killed_at - INTERVAL_S < t <= killed_at)
                 continue
             _, acked, returned = jumps[0]
             restored = returned - 1  # the state the next replica took over: the store's snapshot
-            self.assertGreater(restored, 0, f"{sid} restarted from scratch (acknowledged tick {acked})")
+            if restored <= 0:
+                from_scratch.append(f"{sid} (acknowledged tick {acked})")
             # The promise: every tick lost was acknowledged within one interval before the kill (the oldest lost
             # tick's age). A tick computed and saved whose answer the kill cut off is restored too: the session is
             # then one ahead of its client, and nothing is lost.
             lost_at = [t for t, k in acks if restored < k <= acked and t <= killed_at]
             lost[sid] = max(0, acked - restored)
             ages[sid] = killed_at - min(lost_at) if lost_at else 0.0
-            per_interval[sid] = sum(1 for t, _ in acks if killed_at - INTERVAL_S < t <= killed_at)
         # One interval, plus the time a pass takes to save the replica's sessions (the reaper looks every 0.1 s).
         slack = 0.5
         late = {s: round(a, 2) for s, a in ages.items() if a > INTERVAL_S + slack}
-        print(f"\nkill -9 of {victim} ({len(mine)} of {SESSIONS} sessions): every session continued; ticks lost per "
-              f"session {sorted(lost.values())} (ticks made per session in one {INTERVAL_S:g} s interval before the "
-              f"kill: {sorted(per_interval.values())}); oldest lost tick acknowledged {max(ages.values()):.2f} s before the kill; "
+        print(f"\nkill -9 of {victim} ({len(mine)} of {SESSIONS} sessions, client pause {PAUSE_S:g} s): every session "
+              f"continued; ticks lost per session {sorted(lost.values())} (ticks made per session in the "
+              f"{INTERVAL_S:g} s interval before the kill: {sorted(per_interval.values())}); oldest lost tick "
+              f"acknowledged {max(ages.values()):.2f} s before the kill; restarted from tick 0: {len(from_scratch)}; "
               f"UNAVAILABLE retried {sum(load.retried.values())} times: {dict(load.retried)}", flush=True)
+        self.assertEqual(wrong, [])
+        self.assertEqual(from_scratch, [], "sessions restarted from scratch")
         self.assertEqual(late, {}, f"ticks lost that were acknowledged more than {INTERVAL_S + slack:g} s before the kill")
         load.close_all(self.cluster.stub)
         self.assertEqual(self.cluster.redis.keys("ss:*"), [], "closed sessions left keys in the store")
