@@ -3,6 +3,7 @@
 (the upstream addresses and the listen port substituted, nothing else)."""
 import os
 import re
+import signal
 import shutil
 import socket
 import subprocess
@@ -272,3 +273,71 @@ class StoreCluster:
 
     def __exit__(self, *exc):
         self.stop()
+
+
+HAPROXY_SERVER_LINE = re.compile(r"^(\s*)server scenestreamer-\d+ scenestreamer-\d+\.scenestreamer:50051([^\n]*)\n", re.M)
+
+
+def render_haproxy_replicas(upstreams, listen_port):
+    """deploy/router/haproxy.cfg for any number of replicas: its server lines replaced by one per address (named
+    scenestreamer-0, -1, ... as in the file), and its bind port."""
+    with open(HAPROXY_CFG) as f:
+        text = f.read()
+    lines = list(HAPROXY_SERVER_LINE.finditer(text))
+    if not lines:
+        raise RuntimeError(f"{HAPROXY_CFG}: no 'server scenestreamer-N scenestreamer-N.scenestreamer:50051' lines")
+    indent, params = lines[0].group(1), lines[0].group(2)
+    block = "".join(f"{indent}server scenestreamer-{i} {u}{params}\n" for i, u in enumerate(upstreams))
+    text = text[:lines[0].start()] + block + text[lines[-1].end():]
+    text, n = re.subn(r"bind :8080 ", f"bind 127.0.0.1:{listen_port} ", text)
+    if n != 1:
+        raise RuntimeError(f"{HAPROXY_CFG}: expected one 'bind :8080', found {n}")
+    return text
+
+
+class HAProxyRouter:
+    """HAProxy in master-worker mode with deploy/router/haproxy.cfg in front of `cluster`'s replicas; reload() rewrites
+    its list and sends the master SIGUSR2 (a new worker takes new connections, the old one finishes its calls)."""
+
+    def __init__(self, cluster, names):
+        self.cluster = cluster
+        self.port = free_port()
+        self.cfg = os.path.join(cluster.dir, "haproxy.cfg")
+        self.write(names)
+        self.log = open(os.path.join(cluster.dir, "haproxy.log"), "w")
+        self.proc = subprocess.Popen(["haproxy", "-W", "-db", "-f", self.cfg], stdout=self.log,
+                                     stderr=subprocess.STDOUT)
+        self.channel = grpc.insecure_channel(self.target)
+        self.stub = rpc.SimulatorStub(self.channel)
+        deadline = time.time() + 30
+        while True:
+            try:
+                self.stub.ListScenarios(pb.ListScenariosRequest(), timeout=5)
+                break
+            except grpc.RpcError:
+                if self.proc.poll() is not None or time.time() > deadline:
+                    raise RuntimeError("haproxy did not start:\n" + self.output())
+                time.sleep(0.2)
+
+    @property
+    def target(self):
+        return f"127.0.0.1:{self.port}"
+
+    def write(self, names):
+        with open(self.cfg, "w") as f:
+            f.write(render_haproxy_replicas([self.cluster.servers[n].target for n in names], self.port))
+
+    def reload(self, names):
+        self.write(names)
+        self.proc.send_signal(signal.SIGUSR2)
+
+    def output(self):
+        with open(os.path.join(self.cluster.dir, "haproxy.log")) as f:
+            return f.read()
+
+    def stop(self):
+        self.channel.close()
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.wait(30)
+        self.log.close()
