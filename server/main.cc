@@ -42,7 +42,8 @@ ABSL_FLAG(std::string, scenario_dir, "",
           "tree)");
 ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction and SIGTERM, and restored from on start");
 ABSL_FLAG(double, snapshot_interval_s, 30,
-          "With --snapshot_dir: sessions that changed are saved this often, so a crash loses at most this much "
+          "With --snapshot_dir or --session_store: sessions that changed are saved this often, so a crash loses at "
+          "most this much "
           "(0: saved only on eviction and SIGTERM)");
 ABSL_FLAG(std::string, session_store, "",
           "A shared session store, redis://HOST:PORT[/DB] (Debian's redis-server): snapshots go there instead of "

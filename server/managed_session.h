@@ -108,7 +108,8 @@ struct ManagedSession {
   // For a call that holds engine_mu: UNAVAILABLE once the session moved to another replica (the retry reaches it).
   absl::Status check_not_moved() const {
     if (!moved) return absl::OkStatus();
-    return absl::UnavailableError("session '" + id + "' moved to another replica while this call waited; retry the call");
+    return absl::UnavailableError("session '" + id +
+                                  "' moved to another replica while this call waited; retry the call");
   }
   // Marks the session closed: waiting controllers wake, watchers end. Holds mu.
   void close_locked() {

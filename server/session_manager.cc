@@ -12,7 +12,9 @@ namespace ss::server {
 namespace {
 
 absl::Status draining_error() {
-  return absl::UnavailableError("the server is draining (shutting down): the session is saved; retry after restart");
+  return absl::UnavailableError(
+      "the server is draining (shutting down): the session is saved; retry (after its restart, or on another replica "
+      "with a session store)");
 }
 
 // How long a call without a deadline of its own (GetSession, JoinSession, StateForce, WatchSession) may wait for an

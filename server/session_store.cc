@@ -14,7 +14,8 @@ namespace {
 // The connect and reply timeout: a store that does not answer within it is unreachable for this call.
 constexpr int kTimeoutMs = 2000;
 
-// Every script takes KEYS lease, epoch, want, snap, tenant and ARGV[1] = replica id, ARGV[2] = lease ms, ARGV[3] = retain ms.
+// Every script takes KEYS lease, epoch, want, snap, tenant and ARGV[1] = replica id, ARGV[2] = lease ms,
+// ARGV[3] = retain ms.
 // "Mine" is the one ownership rule: the lease names me with my epoch, or it lapsed and the epoch is still mine.
 constexpr char kMine[] = R"(
 local function mine(lease, epoch, me, e)
@@ -83,7 +84,8 @@ return {'ok'}
 constexpr char kRenew[] = R"(
 local out = {}
 for i = 1, #KEYS / 5 do
-  local lease, epoch, want, snap, tenant = KEYS[5 * i - 4], KEYS[5 * i - 3], KEYS[5 * i - 2], KEYS[5 * i - 1], KEYS[5 * i]
+  local k = 5 * i - 5
+  local lease, epoch, want, snap, tenant = KEYS[k + 1], KEYS[k + 2], KEYS[k + 3], KEYS[k + 4], KEYS[k + 5]
   local ok, owner = mine(lease, epoch, ARGV[1], ARGV[3 + i])
   if ok then
     redis.call('SET', lease, ARGV[1], 'PX', ARGV[2])
@@ -130,7 +132,8 @@ absl::StatusOr<StoreAddress> parse_store_url(const std::string& url) {
   StoreAddress a;
   if (const size_t slash = rest.find('/'); slash != std::string::npos) {
     const std::string db = rest.substr(slash + 1);
-    if (!absl::SimpleAtoi(db, &a.db) || a.db < 0 || a.db > 15) return bad(absl::StrCat("database '", db, "' is not 0..15"));
+    if (!absl::SimpleAtoi(db, &a.db) || a.db < 0 || a.db > 15)
+      return bad(absl::StrCat("database '", db, "' is not 0..15"));
     rest = rest.substr(0, slash);
   }
   if (rest.find('@') != std::string::npos)
@@ -294,7 +297,8 @@ absl::StatusOr<SessionStore::Taken> SessionStore::acquire(const std::string& id,
   auto r = eval(kAcquire, keys_of(id), {tenant});
   if (!r.ok()) return r.status();
   Taken t;
-  if ((*r)[0] == "unknown") return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
+  if ((*r)[0] == "unknown")
+    return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " is not an open session"));
   if ((*r)[0] == "held" && r->size() == 3) {
     t.owner = (*r)[1];
     t.owner_ttl_ms = to_int((*r)[2]);

@@ -11,8 +11,8 @@
 //                 epoch is still its own (no other replica took it meanwhile)
 //   ss:{S}:want   a replica asking the owner to hand S over (expires after --lease_ms)
 //   ss:{S}:tenant the owning tenant: another tenant's call finds no session S, and does not move it
-// The snapshot, the epoch and the tenant expire `retain_ms` after their last write or renewal, so the sessions of replicas that
-// died are not kept forever by a store no replica cleans.
+// The snapshot, the epoch and the tenant expire `retain_ms` after their last write or renewal, so the sessions of
+// replicas that died are not kept forever by a store no replica cleans.
 #pragma once
 
 #include <map>

@@ -275,7 +275,8 @@ class StoreCluster:
         self.stop()
 
 
-HAPROXY_SERVER_LINE = re.compile(r"^(\s*)server scenestreamer-\d+ scenestreamer-\d+\.scenestreamer:50051([^\n]*)\n", re.M)
+HAPROXY_SERVER_LINE = re.compile(r"^(\s*)server scenestreamer-\d+ scenestreamer-\d+\.scenestreamer:50051([^\n]*)\n",
+                                 re.M)
 
 
 def render_haproxy_replicas(upstreams, listen_port):

@@ -166,7 +166,7 @@ class ClusterStoreTest(unittest.TestCase):
               f"UNAVAILABLE retried {sum(load.retried.values())} times: {dict(load.retried)}", flush=True)
         self.assertEqual(wrong, [])
         self.assertEqual(from_scratch, [], "sessions restarted from scratch")
-        self.assertEqual(late, {}, f"ticks lost that were acknowledged more than {INTERVAL_S + slack:g} s before the kill")
+        self.assertEqual(late, {}, f"lost ticks acknowledged more than {INTERVAL_S + slack:g} s before the kill")
         load.close_all(self.cluster.stub)
         self.assertEqual(self.cluster.redis.keys("ss:*"), [], "closed sessions left keys in the store")
 
