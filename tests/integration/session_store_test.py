@@ -3,7 +3,8 @@
 ahead before the move), ids are unique over the store, a close on any replica closes it everywhere, another tenant's
 call neither finds nor moves it, a SIGTERM hands every session over at once, a replica stopped past its lease is
 refused with "lease lost" naming the replica that took the session, and bad store flags or an unreachable store stop
-the server at start with a message naming what is wrong."""
+the server at start with a message naming what is wrong; a store gone mid-run refuses calls once their lease is too
+old to trust."""
 import os
 import signal
 import subprocess
@@ -191,6 +192,35 @@ class SessionStoreTest(unittest.TestCase):
                   f"(lease {LEASE_MS} ms); the paused replica then answered FAILED_PRECONDITION: {details}", flush=True)
         finally:
             extra.stop()
+
+
+class StoreDownTest(unittest.TestCase):
+    def test_a_store_gone_mid_run_refuses_calls_once_the_lease_is_too_old(self):
+        with Redis() as redis:
+            s = Server(f"--session_store={redis.url}", "--replica_id=rz", "--lease_ms=1000").start()
+            try:
+                name = s.stub.ListScenarios(pb.ListScenariosRequest(), timeout=30).scenarios[0].name
+                t = s.stub.CreateSession(pb.CreateSessionRequest(scenario_name=name, session_id="down-1"),
+                                         timeout=60).initial
+                t = step(s.stub, "down-1", t)
+                redis.proc.kill()
+                redis.proc.wait(30)
+                # Trusted for 3/4 of the lease after its last renewal, then refused: no call runs on a lease that
+                # another replica might hold by now.
+                def refused():
+                    code, details = error_of(step, s.stub, "down-1", t)
+                    return (code, details) if code else None
+
+                code, details = eventually(refused, "a call refused", timeout=10)
+                self.assertEqual(code, C.UNAVAILABLE, details)
+                self.assertIn("session 'down-1': its lease cannot be renewed: session store redis://127.0.0.1:", details)
+                self.assertIn("cannot be reached", details)
+                code, details = error_of(s.stub.CreateSession, pb.CreateSessionRequest(scenario_name=name),
+                                         timeout=60)
+                self.assertEqual(code, C.UNAVAILABLE, details)
+                self.assertIsNone(s.proc.poll())
+            finally:
+                s.stop()
 
 
 class StoreFlagsTest(unittest.TestCase):
