@@ -4,9 +4,11 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "absl/flags/flag.h"
@@ -224,12 +226,14 @@ int main(int argc, char** argv) {
     // Sessions no replica holds (theirs died and no call came since) leave the store after the idle timeout.
     so.retain_ms = static_cast<int64_t>(absl::GetFlag(FLAGS_idle_timeout_s) * 1000) + so.lease_ms;
     if (const std::string file = absl::GetFlag(FLAGS_session_store_password_file); !file.empty()) {
-      auto text = ss::file_read_all(file);
-      if (!text.ok()) {
-        spdlog::critical("cannot start: --session_store_password_file: {}", std::string(text.status().message()));
+      std::ifstream in(file);
+      if (!in) {
+        spdlog::critical("cannot start: --session_store_password_file {}: cannot be read: {}", file,
+                         std::strerror(errno));
         return 1;
       }
-      so.password = text->substr(0, text->find_first_of("\r\n"));
+      std::getline(in, so.password);
+      if (!so.password.empty() && so.password.back() == '\r') so.password.pop_back();
       if (so.password.empty()) {
         spdlog::critical("cannot start: --session_store_password_file {}: its first line is empty", file);
         return 1;
