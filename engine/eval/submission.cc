@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "engine/eval/baselines.h"
 #include "engine/io/file_io.h"
+#include "engine/io/json_strict.h"
 #include "nlohmann/json.hpp"
 #include "womd/sim_agents_submission.pb.h"
 
@@ -45,12 +46,9 @@ bool all_finite(const SimulatedTrajectory& t) {
 absl::StatusOr<SubmissionMetadata> read_submission_metadata(const std::string& path) {
   auto bytes = file_read_all(path);
   if (!bytes.ok()) return bytes.status();
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(*bytes);
-  } catch (const nlohmann::json::exception& e) {
-    return absl::InvalidArgumentError(absl::StrCat(path, ": not JSON: ", e.what()));
-  }
+  auto parsed = json_parse_strict(*bytes);
+  if (!parsed.ok()) return absl::Status(parsed.status().code(), absl::StrCat(path, ": ", parsed.status().message()));
+  const nlohmann::json& j = *parsed;
   if (!j.is_object()) return absl::InvalidArgumentError(absl::StrCat(path, ": submission metadata is not a JSON object"));
   SubmissionMetadata m;
   const std::map<std::string, std::string*> strings = {
