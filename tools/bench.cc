@@ -7,13 +7,13 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
-#include "bench/bench_world.h"
+#include "common/bench_world.h"
 #include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
 #include "engine/model/matmul_bf16.h"
 #include "nlohmann/json.hpp"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 

@@ -7,7 +7,7 @@
 #include "engine/eval/submission.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 

@@ -24,7 +24,7 @@
 #include "engine/model/weights.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/eval/eval_compare.h"
 #include "tools/eval/eval_plots.h"

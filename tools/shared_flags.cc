@@ -5,7 +5,7 @@
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
 #include "engine/sim/session_types.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 
 ABSL_FLAG(std::string, model, "",
           "model weights (safetensors); default: the bundled default model, models/default.safetensors in "

@@ -1,5 +1,5 @@
 // The flags several `scenestreamer` commands take, each defined once (tools/shared_flags.cc); a command lists the
-// ones it takes in its Command (tools/command_line.h).
+// ones it takes in its Command (common/command_line.h).
 #pragma once
 
 #include <cstdint>
@@ -23,7 +23,7 @@ ABSL_DECLARE_FLAG(std::string, submission_metadata);  // convert, eval
 
 namespace ss::cli {
 
-// The trained default model, relative to the bundled files' folder (bundled_dir(), tools/command_line.h): the
+// The trained default model, relative to the bundled files' folder (bundled_dir(), common/command_line.h): the
 // installed share/scenestreamer, or the source tree of a program in its build tree.
 inline constexpr const char* kDefaultModel = "models/default.safetensors";
 // --model, or the default model when the flag is absent; NOT_FOUND naming where it looked when neither exists.

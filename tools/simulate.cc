@@ -12,7 +12,7 @@
 #include "engine/sim/rollout_export.h"
 #include "engine/sim/session.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 

@@ -1,4 +1,4 @@
-#include "bench/bench_world.h"
+#include "common/bench_world.h"
 
 #include <algorithm>
 #include <set>
