@@ -5,21 +5,19 @@
 
 #include "absl/strings/str_cat.h"
 #include "engine/map/focus.h"
-#include "engine/model/weights.h"
-#include "engine/scenario/read.h"
-#include "engine/sim/map_cache.h"
 
 namespace ss {
 
 absl::StatusOr<BenchWorld> make_bench_world(const std::string& scenario_path, const std::string& model, int lights,
-                                            ModelOptions options) {
+                                            EngineOptions options) {
   BenchWorld w;
-  absl::StatusOr<Weights> weights = [&]() -> absl::StatusOr<Weights> {
-    if (model == "small" || model == "large") return init_weights(*model_config_by_name(model), 1);
-    return load_weights(model);
-  }();
-  if (!weights.ok()) return weights.status();
-  auto m = Model::create(std::move(*weights), options);
+  if (model == "small" || model == "large") {
+    options.random_config = model;
+    options.random_seed = 1;
+  } else {
+    options.model_path = model;
+  }
+  auto m = model_load(options);
   if (!m.ok()) return m.status();
   w.model = *m;
 

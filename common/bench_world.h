@@ -6,8 +6,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
-#include "engine/model/model.h"
-#include "engine/sim/session.h"
+#include "engine/offline.h"
 
 namespace ss {
 
@@ -21,9 +20,10 @@ inline constexpr const char* kBenchScenario = "../shared/data/womd/tfrecord/moti
 
 // `model`: a weight file, or "small"/"large" for random weights (seed 1). The scenario's lights are topped up to
 // `lights` by giving signals (a fixed green-yellow-red cycle, stop point at the lane's end) to the unsignalled lanes
-// nearest the SDC: the goal is stated for 16 lights, and the real scenario has 12. `options`: e.g. the KV precision.
+// nearest the SDC: the goal is stated for 16 lights, and the real scenario has 12. `options`: the precisions and step
+// threads (its model fields are set from `model`).
 absl::StatusOr<BenchWorld> make_bench_world(const std::string& scenario_path, const std::string& model, int lights = 16,
-                                            ModelOptions options = {});
+                                            EngineOptions options = {});
 
 // A densify session with exactly `agents` agents at creation; its region covers the whole map, so nobody leaves and
 // the count stays at `agents` (new agents fill any gap up to the cap).

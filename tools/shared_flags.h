@@ -7,6 +7,7 @@
 
 #include "absl/flags/declare.h"
 #include "absl/status/statusor.h"
+#include "engine/scenestreamer.h"
 
 ABSL_DECLARE_FLAG(std::string, model);                // simulate, eval
 ABSL_DECLARE_FLAG(uint64_t, seed);                    // init-weights, simulate, eval, dataset sumo
@@ -20,6 +21,8 @@ ABSL_DECLARE_FLAG(double, temperature);               // simulate, eval
 ABSL_DECLARE_FLAG(bool, motion_reject);               // simulate, eval
 ABSL_DECLARE_FLAG(std::string, wosac_submission);     // convert, eval
 ABSL_DECLARE_FLAG(std::string, submission_metadata);  // convert, eval
+ABSL_DECLARE_FLAG(std::string, kv_precision);         // simulate, eval, bench
+ABSL_DECLARE_FLAG(std::string, matmul_precision);     // simulate, eval, bench
 
 namespace ss::cli {
 
@@ -28,5 +31,10 @@ namespace ss::cli {
 inline constexpr const char* kDefaultModel = "models/default.safetensors";
 // --model, or the default model when the flag is absent; NOT_FOUND naming where it looked when neither exists.
 absl::StatusOr<std::string> model_path();
+// The engine's options for the model of simulate and eval: model_path() and --kv-precision, --matmul-precision
+// (checked when the model loads: model_load, engine/offline.h).
+absl::StatusOr<EngineOptions> model_options();
+// --kv-precision and --matmul-precision into `o`.
+void set_precisions(EngineOptions& o);
 
 }  // namespace ss::cli
