@@ -15,6 +15,7 @@ COPY CMakeLists.txt /src/
 COPY proto /src/proto
 COPY common /src/common
 COPY engine /src/engine
+COPY offline /src/offline
 COPY server /src/server
 COPY client_examples /src/client_examples
 COPY tools /src/tools

@@ -4,7 +4,7 @@
 #include <map>
 
 #include "absl/strings/str_cat.h"
-#include "engine/eval/submission.h"
+#include "offline/eval/submission.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
 #include "common/command_line.h"

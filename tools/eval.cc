@@ -16,9 +16,9 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
-#include "engine/eval/aggregate.h"
-#include "engine/eval/evaluate.h"
-#include "engine/eval/submission.h"
+#include "offline/eval/aggregate.h"
+#include "offline/eval/evaluate.h"
+#include "offline/eval/submission.h"
 #include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
 #include "engine/offline.h"

@@ -3,8 +3,8 @@
 #include <cstdio>
 
 #include "absl/flags/flag.h"
-#include "engine/eval/evaluate.h"
-#include "engine/eval/model_rollout.h"
+#include "offline/eval/evaluate.h"
+#include "offline/eval/model_rollout.h"
 #include "engine/model/linalg.h"
 #include "engine/offline.h"
 #include "engine/sim/rollout_export.h"

@@ -11,7 +11,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "engine/io/file_io.h"
-#include "engine/render/svg_text.h"
+#include "offline/render/svg_text.h"
 
 namespace ss::train {
 namespace {

@@ -7,9 +7,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
-#include "engine/eval/estimators.h"
-#include "engine/eval/evaluate.h"
-#include "engine/eval/meta_metric.h"
+#include "offline/eval/estimators.h"
+#include "offline/eval/evaluate.h"
+#include "offline/eval/meta_metric.h"
 #include "engine/io/file_io.h"
 #include "engine/io/json_strict.h"
 

@@ -8,7 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "engine/render/svg_text.h"
+#include "offline/render/svg_text.h"
 
 namespace ss::cli {
 namespace {

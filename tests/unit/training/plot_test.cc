@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/io/file_io.h"
-#include "tests/unit/render/xml_dom.h"
+#include "tests/unit/offline/render/xml_dom.h"
 
 namespace ss::train {
 namespace {
