@@ -13,7 +13,9 @@ RUN /src/deploy/install-deps.sh build && rm -rf /var/lib/apt/lists/*
 # Only what CMake reads: a new model or new scenarios (the share stage) leave the compiled layers cached.
 COPY CMakeLists.txt /src/
 COPY proto /src/proto
+COPY common /src/common
 COPY engine /src/engine
+COPY offline /src/offline
 COPY server /src/server
 COPY client_examples /src/client_examples
 COPY tools /src/tools

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "bench/bench_world.h"
+#include "common/bench_world.h"
 #include "engine/model/linalg.h"
 
 namespace ss {

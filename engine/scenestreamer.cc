@@ -6,6 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
+#include "engine/offline.h"
 #include "engine/scenario/read.h"
 #include "engine/scenario/womd_proto.h"
 #include "engine/sim/events.h"
@@ -80,15 +81,12 @@ std::shared_ptr<const EventMap> event_map_for(Engine& e, const Scenario& s) {
 
 void EngineDeleter::operator()(Engine* e) const { delete e; }
 
-absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
-  EnginePtr e(new Engine());
-  e->options = options;
+absl::StatusOr<std::shared_ptr<const Model>> model_load(const EngineOptions& options) {
   absl::StatusOr<Weights> w;
   if (options.model_path.empty()) {
     auto config = model_config_by_name(options.random_config);
     if (!config.ok()) return config.status();
     w = init_weights(*config, options.random_seed);
-    e->random_weights = true;
   } else {
     w = load_weights(options.model_path);
     if (!w.ok()) return w.status();
@@ -106,6 +104,18 @@ absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
     mo.matmul_precision = *p;
   }
   auto model = Model::create(std::move(*w), mo);
+  if (!model.ok()) {
+    if (options.model_path.empty()) return model.status();
+    return absl::Status(model.status().code(), absl::StrCat(options.model_path, ": ", model.status().message()));
+  }
+  return std::shared_ptr<const Model>(*std::move(model));
+}
+
+absl::StatusOr<EnginePtr> engine_create(const EngineOptions& options) {
+  EnginePtr e(new Engine());
+  e->options = options;
+  e->random_weights = options.model_path.empty();
+  auto model = model_load(options);
   if (!model.ok()) return model.status();
   e->model = *model;
   e->maps = std::make_unique<MapCache>(e->model);

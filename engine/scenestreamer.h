@@ -12,9 +12,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "engine/base/rng.h"
 #include "engine/base/thread_pool.h"
-#include "engine/io/file_io.h"
 #include "engine/io/record.h"
 #include "engine/sim/session_types.h"
 

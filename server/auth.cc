@@ -5,7 +5,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "engine/scenestreamer.h"
+#include "engine/io/file_io.h"
 
 namespace ss::server {
 namespace {

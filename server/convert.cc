@@ -1,23 +1,14 @@
 #include "server/convert.h"
 
-#include <cmath>
-
 #include "absl/strings/str_cat.h"
 
 namespace ss::server {
 namespace {
 
-absl::Status finite(double v, const std::string& field) {
-  if (std::isfinite(v)) return absl::OkStatus();
-  return absl::InvalidArgumentError(absl::StrCat(field, " is ", std::to_string(v), ", not a finite number"));
-}
+// Decoding only: the engine checks every value once, at its entry (Session::create, tick, inject, state_force).
+// What stays here is what the engine's types cannot hold: an id beyond 32 bits, a light state beyond a byte.
 
-absl::StatusOr<StepState> state_from_proto(const pb::AgentState& s, const std::string& field) {
-  const std::pair<double, const char*> values[] = {{s.x(), "x"},   {s.y(), "y"},           {s.heading(), "heading"},
-                                                   {s.vx(), "vx"}, {s.vy(), "vy"},         {s.length(), "length"},
-                                                   {s.width(), "width"}, {s.height(), "height"}};
-  for (const auto& [v, name] : values)
-    if (auto st = finite(v, absl::StrCat(field, ".", std::string(name))); !st.ok()) return st;
+StepState state_from_proto(const pb::AgentState& s) {
   StepState out;
   out.x = s.x();
   out.y = s.y();
@@ -50,13 +41,10 @@ pb::Mode mode_to_proto(SessionMode m) { return static_cast<pb::Mode>(static_cast
 
 absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest& r) {
   SessionOptions o;
-  if (!pb::Mode_IsValid(r.mode()))
-    return absl::InvalidArgumentError(absl::StrCat("mode ", std::to_string(r.mode()), " is not a known Mode"));
+  // Zero is proto3's "not given": the engine's default stays. Any other value goes to the engine, which checks it.
   o.mode = static_cast<SessionMode>(static_cast<int>(r.mode()));
   o.seed = r.seed();
   if (r.has_sampling()) {
-    if (auto st = finite(r.sampling().top_p(), "sampling.top_p"); !st.ok()) return st;
-    if (auto st = finite(r.sampling().temperature(), "sampling.temperature"); !st.ok()) return st;
     if (r.sampling().top_p() != 0) o.top_p = r.sampling().top_p();
     if (r.sampling().temperature() != 0) o.temperature = r.sampling().temperature();
     o.motion_reject = !r.sampling().no_motion_reject();
@@ -68,73 +56,42 @@ absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest
     o.controlled_ids.push_back(static_cast<int32_t>(id));
   }
   o.control_sdc = !r.model_drives_sdc();
-  if (auto st = finite(r.roi_radius(), "roi_radius"); !st.ok()) return st;
-  if (r.roi_radius() < 0) return absl::InvalidArgumentError("roi_radius must not be negative");
-  if (r.roi_radius() > 0) o.roi_radius = r.roi_radius();
-  if (r.max_agents() < 0) return absl::InvalidArgumentError("max_agents must not be negative");
-  if (r.max_agents() > 0) o.max_agents = r.max_agents();
-  if (r.densify_target() < 0) return absl::InvalidArgumentError("densify_target must not be negative");
+  if (r.roi_radius() != 0) o.roi_radius = r.roi_radius();
+  if (r.max_agents() != 0) o.max_agents = r.max_agents();
   o.densify_target = r.densify_target();
-  o.tick_hz = r.tick_hz() == 0 ? 2 : r.tick_hz();  // the engine checks the value
+  o.tick_hz = r.tick_hz() == 0 ? 2 : r.tick_hz();
   return o;
 }
 
-absl::StatusOr<std::vector<ControlInput>> controls_from_proto(const pb::StepSceneRequest& r) {
+std::vector<ControlInput> controls_from_proto(const pb::StepSceneRequest& r) {
   std::vector<ControlInput> out;
-  for (int i = 0; i < r.poses_size(); ++i) {
-    const pb::ControlledPose& p = r.poses(i);
-    const std::string f = absl::StrCat("poses[", std::to_string(i), "] (agent ", std::to_string(p.agent_id()), ")");
-    if (auto st = finite(p.x(), f + ".x"); !st.ok()) return st;
-    if (auto st = finite(p.y(), f + ".y"); !st.ok()) return st;
-    if (auto st = finite(p.heading(), f + ".heading"); !st.ok()) return st;
+  for (const pb::ControlledPose& p : r.poses()) {
     ControlInput c{p.agent_id(), p.x(), p.y(), p.heading(), std::nullopt};
-    if (p.has_speed()) {
-      if (auto st = finite(p.speed(), f + ".speed"); !st.ok()) return st;
-      c.speed = p.speed();
-    }
-    for (const ControlInput& prev : out)
-      if (prev.agent_id == c.agent_id)
-        return absl::InvalidArgumentError(absl::StrCat(f, ": agent given twice in one request"));
+    if (p.has_speed()) c.speed = p.speed();
     out.push_back(c);
   }
   return out;
 }
 
-absl::StatusOr<InjectRequest> inject_from_proto(const pb::InjectAgentRequest& r) {
+InjectRequest inject_from_proto(const pb::InjectAgentRequest& r) {
   InjectRequest q;
   q.count = r.count();
-  if (r.has_type()) {
-    if (!pb::AgentType_IsValid(r.type()))
-      return absl::InvalidArgumentError(absl::StrCat("type ", std::to_string(r.type()), " is not a known AgentType"));
-    q.type = static_cast<int>(r.type());
-  }
-  if (r.has_near()) {
-    if (auto st = finite(r.near().x(), "near.x"); !st.ok()) return st;
-    if (auto st = finite(r.near().y(), "near.y"); !st.ok()) return st;
-    q.near = Vec2{r.near().x(), r.near().y()};
-  }
-  if (auto st = finite(r.near_radius(), "near_radius"); !st.ok()) return st;
-  if (r.near_radius() > 0) q.near_radius = r.near_radius();
-  if (r.has_state()) {
-    auto s = state_from_proto(r.state(), "state");
-    if (!s.ok()) return s.status();
-    q.state = *s;
-  }
+  if (r.has_type()) q.type = static_cast<int>(r.type());
+  if (r.has_near()) q.near = Vec2{r.near().x(), r.near().y()};
+  if (r.near_radius() != 0) q.near_radius = r.near_radius();
+  if (r.has_state()) q.state = state_from_proto(r.state());
   return q;
 }
 
 absl::StatusOr<StateForceRequest> force_from_proto(const pb::StateForceRequest& r) {
   StateForceRequest q;
-  for (int i = 0; i < r.agents_size(); ++i) {
-    auto s = state_from_proto(r.agents(i).state(), absl::StrCat("agents[", std::to_string(i), "].state"));
-    if (!s.ok()) return s.status();
-    q.agents.emplace_back(r.agents(i).agent_id(), *s);
-  }
+  for (const pb::ForcedAgent& a : r.agents()) q.agents.emplace_back(a.agent_id(), state_from_proto(a.state()));
   for (int i = 0; i < r.lights_size(); ++i) {
-    if (!pb::LightState_IsValid(r.lights(i).state()))
-      return absl::InvalidArgumentError(absl::StrCat("lights[", std::to_string(i), "].state ",
-                                                     std::to_string(r.lights(i).state()), " is not a LightState"));
-    q.lights.emplace_back(r.lights(i).lane(), static_cast<LightState>(r.lights(i).state()));
+    const int state = r.lights(i).state();
+    if (state < 0 || state > 255)  // LightState is a byte: the engine sees every value that fits
+      return absl::InvalidArgumentError(absl::StrCat("lights[", std::to_string(i), "].state ", std::to_string(state),
+                                                     " is not a LightState"));
+    q.lights.emplace_back(r.lights(i).lane(), static_cast<LightState>(state));
   }
   return q;
 }

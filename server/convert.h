@@ -1,5 +1,6 @@
-// Proto <-> engine types. Pure translation and input checks (finite numbers, known enum values); every error names
-// the field.
+// Proto <-> engine types: decoding only. The engine checks the values once, at its entry, and its errors name the
+// field; the only errors here are values the engine's types cannot hold (a 64-bit track id, a light state past a
+// byte).
 #pragma once
 
 #include <string>
@@ -14,8 +15,8 @@ namespace ss::server {
 namespace pb = ::scenestreamer::v1;
 
 absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest& r);
-absl::StatusOr<std::vector<ControlInput>> controls_from_proto(const pb::StepSceneRequest& r);
-absl::StatusOr<InjectRequest> inject_from_proto(const pb::InjectAgentRequest& r);
+std::vector<ControlInput> controls_from_proto(const pb::StepSceneRequest& r);
+InjectRequest inject_from_proto(const pb::InjectAgentRequest& r);
 absl::StatusOr<StateForceRequest> force_from_proto(const pb::StateForceRequest& r);
 
 // A tick's agents, lights and (for a tick a call made) its controlled agents' events.

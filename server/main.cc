@@ -27,7 +27,7 @@
 #include "server/simulator_service.h"
 #include "server/tls.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 
 ABSL_FLAG(std::string, host, "127.0.0.1",
           "Address to listen on. Loopback by default: pass --host=0.0.0.0 to serve other machines (the image and the "

@@ -161,11 +161,16 @@ absl::StatusOr<std::vector<TickView>> SessionManager::step(const std::string& id
     return absl::InvalidArgumentError(absl::StrCat("num_ticks ", std::to_string(num_ticks), ": must be in 1..1000"));
   std::unique_lock<std::mutex> l(s.mu);
   if (s.closed) return absl::FailedPreconditionError(absl::StrCat("session ", echo_id(id), " was closed"));
-  for (size_t i = 0; i < controls.size(); ++i)
+  // The barrier gathers poses by agent (several clients, one tick), so what it would merge is refused here: an agent
+  // that is not a controller's, or one given twice in this call. The engine checks the poses themselves.
+  std::set<int64_t> seen;
+  for (size_t i = 0; i < controls.size(); ++i) {
+    const std::string where = absl::StrCat("poses[", std::to_string(i), "].agent_id ", std::to_string(controls[i].agent_id));
     if (!s.controllers.count(controls[i].agent_id))
-      return absl::InvalidArgumentError(absl::StrCat("poses[", std::to_string(i), "].agent_id ",
-                                                     std::to_string(controls[i].agent_id),
-                                                     " is not a controlled agent of session '", id, "'"));
+      return absl::InvalidArgumentError(absl::StrCat(where, " is not a controlled agent of session '", id, "'"));
+    if (!seen.insert(controls[i].agent_id).second)
+      return absl::InvalidArgumentError(absl::StrCat(where, ": the agent is given twice in one request"));
+  }
   if (auto st = check_controller_locked(s, credential, controls, "poses", "send its poses"); !st.ok()) return st;
   if (num_ticks > 1 && s.controllers.size() > 1)
     return absl::InvalidArgumentError("num_ticks > 1 is only for sessions with at most one controlled agent");

@@ -97,9 +97,7 @@ TimePoint SimulatorService::deadline(const Ctx* ctx) const {
   InFlight guard(in_flight_);
   auto tenant = caller_tenant(auth_, *ctx);
   if (!tenant.ok()) return finish("StepScene", r->session_id(), tenant.status());
-  auto controls = controls_from_proto(*r);
-  if (!controls.ok()) return finish("StepScene", r->session_id(), controls.status());
-  auto ticks = sessions_.step(r->session_id(), *tenant, r->controller_credential(), *controls, r->num_ticks(),
+  auto ticks = sessions_.step(r->session_id(), *tenant, r->controller_credential(), controls_from_proto(*r), r->num_ticks(),
                               deadline(ctx), [ctx] { return ctx->IsCancelled(); });
   if (!ticks.ok()) return finish("StepScene", r->session_id(), ticks.status());
   for (const TickView& t : *ticks) tick_to_proto(t.view, t.tick, out->add_ticks());
@@ -111,9 +109,7 @@ TimePoint SimulatorService::deadline(const Ctx* ctx) const {
   InFlight guard(in_flight_);
   auto tenant = caller_tenant(auth_, *ctx);
   if (!tenant.ok()) return finish("InjectAgent", r->session_id(), tenant.status());
-  auto q = inject_from_proto(*r);
-  if (!q.ok()) return finish("InjectAgent", r->session_id(), q.status());
-  auto ids = sessions_.inject(r->session_id(), *tenant, *q, deadline(ctx));
+  auto ids = sessions_.inject(r->session_id(), *tenant, inject_from_proto(*r), deadline(ctx));
   if (!ids.ok()) return finish("InjectAgent", r->session_id(), ids.status());
   for (int64_t id : *ids) out->add_agent_ids(id);
   return finish("InjectAgent", r->session_id(), absl::OkStatus());

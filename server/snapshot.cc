@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "absl/strings/str_cat.h"
+#include "engine/io/file_io.h"
 #include "server/session_id.h"
 #include "state/snapshot.pb.h"
 

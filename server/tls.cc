@@ -6,7 +6,7 @@
 #include <openssl/x509.h>
 
 #include "absl/strings/str_cat.h"
-#include "engine/scenestreamer.h"
+#include "engine/io/file_io.h"
 
 namespace ss::server {
 namespace {

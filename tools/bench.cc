@@ -7,13 +7,13 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
-#include "bench/bench_world.h"
+#include "common/bench_world.h"
 #include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
 #include "engine/model/matmul_bf16.h"
 #include "nlohmann/json.hpp"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 
@@ -22,11 +22,6 @@ ABSL_FLAG(std::string, bench_model, "large", "large or small (random weights of 
 ABSL_FLAG(std::string, bench_scenario, ss::kBenchScenario, "the scenario file the sessions run on");
 ABSL_FLAG(int, bench_steps, 30, "timed steps per agent count, at least 1");
 ABSL_FLAG(int, long_steps, 1000, "steps of the long rollout whose session memory is measured, at least 1");
-ABSL_FLAG(std::string, kv_precision, "",
-          "fp32 or fp16: how keys and values are stored; default: fp16");
-ABSL_FLAG(std::string, matmul_precision, "",
-          "fp32 or bf16 (AVX512-BF16 CPUs): the dense products' precision; default: bf16 where the CPU has "
-          "AVX512-BF16, else fp32");
 
 namespace ss::cli {
 namespace {
@@ -73,23 +68,14 @@ int bench_main(int argc, char** argv) {
                         "  Step latency by agent count, the incremental decoder against a full recompute at step 19,\n"
                         "  session memory after a long rollout, KV bytes per token; one thread.\n",
                         __FILE__,
-                        {flag(FLAGS_json), flag(FLAGS_motion_reject)}};
+                        {flag(FLAGS_json), flag(FLAGS_motion_reject), flag(FLAGS_kv_precision), flag(FLAGS_matmul_precision)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   const int steps = absl::GetFlag(FLAGS_bench_steps), long_steps = absl::GetFlag(FLAGS_long_steps);
   if (steps < 1) return usage_error(command, "--steps must be at least 1");
   if (long_steps < 1) return usage_error(command, "--long-steps must be at least 1");
-  ModelOptions options;
-  if (line.has(FLAGS_kv_precision)) {
-    auto p = kv_precision_by_name(absl::GetFlag(FLAGS_kv_precision));
-    if (!p.ok()) return usage_error(command, "--kv-precision: " + std::string(p.status().message()));
-    options.kv_precision = *p;
-  }
-  if (line.has(FLAGS_matmul_precision)) {
-    auto p = matmul_precision_by_name(absl::GetFlag(FLAGS_matmul_precision));
-    if (!p.ok()) return usage_error(command, "--matmul-precision: " + std::string(p.status().message()));
-    options.matmul_precision = *p;
-  }
+  EngineOptions options;
+  set_precisions(options);
   enable_flush_to_zero();
   auto world = make_bench_world(absl::GetFlag(FLAGS_bench_scenario), absl::GetFlag(FLAGS_bench_model), 16, options);
   if (!world.ok()) return fail(world.status());
@@ -153,8 +139,8 @@ int bench_main(int argc, char** argv) {
   out["step_gflops_achieved"] = achieved;
   out["step_ms_at_gemm_peak"] = floor_ms;
 
-  // A lone session's step with two threads (ModelOptions::step_threads): the same session, the same bits.
-  ModelOptions two = options;
+  // A lone session's step with two threads (EngineOptions::step_threads): the same session, the same bits.
+  EngineOptions two = options;
   two.step_threads = 2;
   auto world2 = make_bench_world(absl::GetFlag(FLAGS_bench_scenario), absl::GetFlag(FLAGS_bench_model), 16, two);
   if (!world2.ok()) return fail(world2.status());

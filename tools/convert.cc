@@ -4,10 +4,10 @@
 #include <map>
 
 #include "absl/strings/str_cat.h"
-#include "engine/eval/submission.h"
+#include "offline/eval/submission.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 

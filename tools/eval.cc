@@ -16,15 +16,14 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
-#include "engine/eval/aggregate.h"
-#include "engine/eval/evaluate.h"
-#include "engine/eval/submission.h"
+#include "offline/eval/aggregate.h"
+#include "offline/eval/evaluate.h"
+#include "offline/eval/submission.h"
 #include "engine/io/json_text.h"
 #include "engine/model/linalg.h"
-#include "engine/model/weights.h"
-#include "engine/scenario/read.h"
+#include "engine/offline.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/eval/eval_compare.h"
 #include "tools/eval/eval_plots.h"
@@ -120,7 +119,7 @@ int eval_main(int argc, char** argv) {
   const Command command{"scenestreamer eval", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_seed), flag(FLAGS_sdc), flag(FLAGS_top_p),
                          flag(FLAGS_temperature), flag(FLAGS_motion_reject), flag(FLAGS_wosac_submission),
-                         flag(FLAGS_submission_metadata)},
+                         flag(FLAGS_submission_metadata), flag(FLAGS_kv_precision), flag(FLAGS_matmul_precision)},
                         true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
@@ -204,13 +203,11 @@ int eval_main(int argc, char** argv) {
   enable_flush_to_zero();
   std::shared_ptr<const Model> model;
   if (options.policy == EvalPolicy::model) {
-    auto path = model_path();
-    if (!path.ok()) return fail(std::string(path.status().message()));
-    auto weights = load_weights(*path);
-    if (!weights.ok()) return fail(std::string(weights.status().message()));
-    auto m = Model::create(std::move(*weights));
-    if (!m.ok()) return fail(absl::StrCat(*path, ": ", m.status().message()));
-    run.model_path = *path;
+    auto model_opts = model_options();
+    if (!model_opts.ok()) return fail(std::string(model_opts.status().message()));
+    auto m = model_load(*model_opts);
+    if (!m.ok()) return fail(std::string(m.status().message()));
+    run.model_path = model_opts->model_path;
     model = *m;
   }
   SubmissionMetadata metadata;

@@ -8,7 +8,7 @@
 #include "absl/flags/flag.h"
 #include "engine/model/weights.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 

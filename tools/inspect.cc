@@ -4,7 +4,7 @@
 #include "engine/io/json_text.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/scenario_report.h"
 #include "tools/shared_flags.h"

@@ -5,7 +5,7 @@
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
 #include "engine/sim/session_types.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 
 ABSL_FLAG(std::string, model, "",
           "model weights (safetensors); default: the bundled default model, models/default.safetensors in "
@@ -33,6 +33,10 @@ ABSL_FLAG(std::string, wosac_submission, "",
 ABSL_FLAG(std::string, submission_metadata, "",
           "a JSON object of the challenge's metadata fields (account_name, unique_method_name, authors, ...), "
           "copied into every shard; with --wosac-submission");
+ABSL_FLAG(std::string, kv_precision, "", "fp32 or fp16: how keys and values are stored; default: fp16");
+ABSL_FLAG(std::string, matmul_precision, "",
+          "fp32 or bf16 (AVX512-BF16 CPUs): the dense products' precision; default: bf16 where the CPU has "
+          "AVX512-BF16, else fp32");
 
 namespace ss::cli {
 
@@ -44,6 +48,20 @@ absl::StatusOr<std::string> model_path() {
   std::error_code ec;
   if (std::filesystem::exists(path, ec)) return path;
   return absl::NotFoundError(absl::StrCat("no --model given and no default model at ", path));
+}
+
+void set_precisions(EngineOptions& o) {
+  o.kv_precision = absl::GetFlag(FLAGS_kv_precision);
+  o.matmul_precision = absl::GetFlag(FLAGS_matmul_precision);
+}
+
+absl::StatusOr<EngineOptions> model_options() {
+  auto path = model_path();
+  if (!path.ok()) return path.status();
+  EngineOptions o;
+  o.model_path = *path;
+  set_precisions(o);
+  return o;
 }
 
 }  // namespace ss::cli

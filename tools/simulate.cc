@@ -3,16 +3,13 @@
 #include <cstdio>
 
 #include "absl/flags/flag.h"
-#include "engine/eval/evaluate.h"
-#include "engine/eval/model_rollout.h"
+#include "offline/eval/evaluate.h"
+#include "offline/eval/model_rollout.h"
 #include "engine/model/linalg.h"
-#include "engine/model/weights.h"
-#include "engine/scenario/read.h"
-#include "engine/sim/map_cache.h"
+#include "engine/offline.h"
 #include "engine/sim/rollout_export.h"
-#include "engine/sim/session.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/commands.h"
 #include "tools/shared_flags.h"
 
@@ -55,7 +52,8 @@ int fail(const std::string& msg) {
 int simulate_main(int argc, char** argv) {
   const Command command{"scenestreamer simulate", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_out), flag(FLAGS_mode), flag(FLAGS_sdc), flag(FLAGS_seed),
-                         flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject)}};
+                         flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject),
+                         flag(FLAGS_kv_precision), flag(FLAGS_matmul_precision)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (!line.has(FLAGS_simulate_scenario) || !line.has(FLAGS_out))
@@ -80,11 +78,9 @@ int simulate_main(int argc, char** argv) {
   if (rollout < 0 || rollout > 1000000) return fail("--rollout must be in 0..1000000");
 
   enable_flush_to_zero();
-  auto path = model_path();
-  if (!path.ok()) return fail(std::string(path.status().message()));
-  auto weights = load_weights(*path);
-  if (!weights.ok()) return fail(std::string(weights.status().message()));
-  auto model = Model::create(std::move(*weights));
+  auto model_opts = model_options();
+  if (!model_opts.ok()) return fail(std::string(model_opts.status().message()));
+  auto model = model_load(*model_opts);
   if (!model.ok()) return fail(std::string(model.status().message()));
   auto scenarios = read_scenarios(absl::GetFlag(FLAGS_simulate_scenario));
   if (!scenarios.ok()) return fail(std::string(scenarios.status().message()));

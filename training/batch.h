@@ -1,4 +1,4 @@
-// Teacher-forced examples (engine/sim/teacher_forcing.h) as tensors: several examples concatenated into one batch
+// Teacher-forced examples (training/teacher_forcing.h) as tensors: several examples concatenated into one batch
 // (their maps and sequences side by side, key indices offset), which is what the torch model reads.
 #pragma once
 
@@ -6,7 +6,7 @@
 
 #include <torch/torch.h>
 
-#include "engine/sim/teacher_forcing.h"
+#include "training/teacher_forcing.h"
 #include "training/sparse_attention.h"
 
 namespace ss::train {

@@ -1,7 +1,7 @@
 #include "training/incremental.h"
 
 #include "absl/strings/str_cat.h"
-#include "engine/sim/teacher_forcing.h"
+#include "training/teacher_forcing.h"
 #include "training/batch.h"
 
 namespace ss::train {

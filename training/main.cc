@@ -10,7 +10,7 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_split.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "training/commands.h"
 #include "training/trainer.h"
 

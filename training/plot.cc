@@ -4,7 +4,6 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <vector>
 
 #include "absl/strings/numbers.h"
@@ -12,6 +11,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "engine/io/file_io.h"
+#include "offline/render/svg_text.h"
 
 namespace ss::train {
 namespace {
@@ -55,12 +55,10 @@ absl::Status plot_run(const std::string& run_dir, const std::string& svg_path) {
                           "end of agents (at SOS, RS)", "map segment pointer (at TYPE)", "relative state (8 fields)"};
   const int w = 340, h = 220, pad = 44, cols = 3;
   const double max_step = train->rbegin()->first;
-  std::ostringstream svg;
-  svg << absl::StrFormat("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%d\" height=\"%d\" font-family=\"sans-serif\" font-size=\"11\">\n",
-                         cols * w, 2 * h + 24);
-  svg << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  svg << absl::StrFormat("<text x=\"8\" y=\"16\" font-size=\"13\">Loss per head (cross-entropy) against the step: "
-                         "train (blue line, mean of each logged window), val (orange dots). Steps 0-%.0f.</text>\n", max_step);
+  SvgWriter svg(cols * w, 2 * h + 24, 11);
+  svg.text(8, 16, absl::StrFormat("Loss per head (cross-entropy) against the step: train (blue line, mean of each "
+                                  "logged window), val (orange dots). Steps 0-%.0f.", max_step),
+           "font-size=\"13\"");
   for (int p = 0; p < 6; ++p) {
     const std::string col = absl::StrCat(heads[p], "_loss");
     const int x0 = (p % cols) * w + pad, y0 = 24 + (p / cols) * h + 18, pw = w - pad - 12, ph = h - 58;
@@ -71,29 +69,27 @@ absl::Status plot_run(const std::string& run_dir, const std::string& svg_path) {
     };
     scan(*train);
     scan(*val);
-    svg << absl::StrFormat("<text x=\"%d\" y=\"%d\">%s</text>\n", x0, y0 - 6, titles[p]);
-    svg << absl::StrFormat("<rect x=\"%d\" y=\"%d\" width=\"%d\" height=\"%d\" fill=\"none\" stroke=\"#999\"/>\n", x0, y0, pw, ph);
+    svg.text(x0, y0 - 6, titles[p]);
+    svg.rect(x0, y0, pw, ph, "fill=\"none\" stroke=\"#999\"");
     if (!(hi > lo)) hi = lo + 1;
     if (!std::isfinite(lo)) lo = 0, hi = 1;
     auto X = [&](double s) { return x0 + pw * s / std::max(1.0, max_step); };
     auto Y = [&](double v) { return y0 + ph * (1 - (v - lo) / (hi - lo)); };
     for (int k = 0; k <= 4; ++k) {
       const double v = lo + (hi - lo) * k / 4;
-      svg << absl::StrFormat("<text x=\"%d\" y=\"%.1f\" text-anchor=\"end\">%.2f</text>\n", x0 - 4, Y(v) + 4, v);
+      svg.text(x0 - 4, Y(v) + 4, absl::StrFormat("%.2f", v), "text-anchor=\"end\"");
     }
-    svg << absl::StrFormat("<text x=\"%d\" y=\"%d\">0</text><text x=\"%d\" y=\"%d\" text-anchor=\"end\">%.0f</text>\n",
-                           x0, y0 + ph + 14, x0 + pw, y0 + ph + 14, max_step);
-    std::string path;
+    svg.text(x0, y0 + ph + 14, "0");
+    svg.text(x0 + pw, y0 + ph + 14, absl::StrFormat("%.0f", max_step), "text-anchor=\"end\"");
+    std::vector<Vec2> line;
     for (const auto& [step, row] : *train)
-      if (auto it = row.find(col); it != row.end() && it->second > 0)
-        absl::StrAppendFormat(&path, "%s%.1f,%.1f ", path.empty() ? "M" : "L", X(step), Y(it->second));
-    svg << absl::StrFormat("<path d=\"%s\" fill=\"none\" stroke=\"#1f77b4\" stroke-width=\"1.2\"/>\n", path);
+      if (auto it = row.find(col); it != row.end() && it->second > 0) line.push_back({X(step), Y(it->second)});
+    svg.path(line, "fill=\"none\" stroke=\"#1f77b4\" stroke-width=\"1.2\"");
     for (const auto& [step, row] : *val)
       if (auto it = row.find(col); it != row.end() && it->second > 0)
-        svg << absl::StrFormat("<circle cx=\"%.1f\" cy=\"%.1f\" r=\"2.5\" fill=\"#ff7f0e\"/>\n", X(step), Y(it->second));
+        svg.circle(X(step), Y(it->second), 2.5, "fill=\"#ff7f0e\"");
   }
-  svg << "</svg>\n";
-  return file_write_atomically(svg_path, svg.str());
+  return file_write_atomically(svg_path, svg.finish());
 }
 
 }  // namespace ss::train

@@ -3,7 +3,7 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "training/commands.h"
 #include "training/plot.h"
 

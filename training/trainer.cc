@@ -17,7 +17,7 @@
 #include "absl/strings/str_format.h"
 #include "engine/model/model.h"
 #include "engine/model/weights.h"
-#include "engine/sim/teacher_forcing.h"
+#include "training/teacher_forcing.h"
 #include "training/batch.h"
 #include "training/data.h"
 #include "training/loss.h"

@@ -16,6 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
 #include "civetweb.h"
+#include "engine/io/json_strict.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
 #include "viewer/convert.h"
@@ -303,7 +304,8 @@ int ws_data(mg_connection* conn, int bits, char* data, size_t len, void*) {
   if (opcode == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE) return 0;
   if (opcode != MG_WEBSOCKET_OPCODE_TEXT || w->started) return 1;
   w->conn = conn;
-  const json msg = json::parse(std::string(data, len), nullptr, false);
+  const auto parsed = ss::json_parse_strict(std::string_view(data, len), {.max_depth = 4});
+  const json msg = parsed.ok() ? *parsed : json();
   std::string session, token;
   if (msg.is_object() && msg.contains("session") && msg["session"].is_string()) session = msg["session"];
   if (msg.is_object() && msg.contains("token") && msg["token"].is_string()) token = msg["token"];

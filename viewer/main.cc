@@ -12,7 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "viewer/convert.h"
 #include "viewer/gateway.h"
 

@@ -1,5 +1,5 @@
 // Road edges prepared for signed-distance queries (positive: off the road). Used by the realism metrics
-// (engine/eval) and by the per-tick events a session reports (engine/sim/events.h).
+// (offline/eval) and by the per-tick events a session reports (engine/sim/events.h).
 #pragma once
 
 #include <vector>

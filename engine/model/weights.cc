@@ -14,6 +14,7 @@
 #include "absl/strings/str_join.h"
 #include "engine/base/rng.h"
 #include "engine/io/file_io.h"
+#include "engine/io/json_strict.h"
 #include "engine/io/json_text.h"
 
 namespace ss {
@@ -98,94 +99,6 @@ absl::Status check_config(const ModelConfig& c, const std::string& where) {
 
 // ---------------------------------------------------------------------------------------------------------------
 // Header JSON.
-
-// Builds the header DOM through nlohmann's SAX interface so that duplicate keys (which the DOM parser silently
-// collapses, hiding a duplicated tensor) are refused, and nesting and array lengths stay bounded.
-class HeaderBuilder {
- public:
-  explicit HeaderBuilder(json& root) : root_(root) {}
-
-  bool null() { return put(json(nullptr)) != nullptr; }
-  bool boolean(bool v) { return put(json(v)) != nullptr; }
-  bool number_integer(json::number_integer_t v) { return put(json(v)) != nullptr; }
-  bool number_unsigned(json::number_unsigned_t v) { return put(json(v)) != nullptr; }
-  bool number_float(json::number_float_t v, const json::string_t&) { return put(json(v)) != nullptr; }
-  bool string(json::string_t& v) { return put(json(std::move(v))) != nullptr; }
-  bool binary(json::binary_t&) { return put(json(nullptr)) != nullptr; }  // only binary formats produce these
-  bool start_object(std::size_t) { return open(json::value_t::object); }
-  bool start_array(std::size_t) { return open(json::value_t::array); }
-  bool end_object() { return close(); }
-  bool end_array() { return close(); }
-
-  bool key(json::string_t& k) {
-    Frame& f = stack_.back();
-    if (f.node->contains(k)) {
-      error_ = absl::StrCat("duplicate key '", printable(k), "'");
-      return false;
-    }
-    f.key = std::move(k);
-    return true;
-  }
-
-  bool parse_error(std::size_t, const std::string&, const json::exception& ex) {
-    // ex.what() is "[json.exception.parse_error.101] parse error at line 1, column 7: ..."; the tag is noise, and the
-    // text may quote bytes of the file.
-    std::string_view what = ex.what();
-    if (size_t tag = what.find("] "); !what.empty() && what[0] == '[' && tag != std::string_view::npos)
-      what.remove_prefix(tag + 2);
-    error_ = printable(what, 300);
-    return false;
-  }
-
-  const std::string& error() const { return error_; }
-
- private:
-  struct Frame {
-    json* node;
-    std::string key;  // objects: the key whose value comes next
-  };
-
-  // Places a value in the open container (or as the root); returns where it now lives, or nullptr on error.
-  json* put(json v) {
-    if (stack_.empty()) {
-      root_ = std::move(v);
-      return &root_;
-    }
-    Frame& f = stack_.back();
-    if (f.node->is_array()) {
-      if (f.node->size() >= kMaxHeaderArrayLength) {
-        error_ = absl::StrCat("an array in the header is longer than ", kMaxHeaderArrayLength, " elements");
-        return nullptr;
-      }
-      f.node->push_back(std::move(v));
-      return &f.node->back();
-    }
-    json& slot = (*f.node)[f.key];
-    slot = std::move(v);
-    return &slot;
-  }
-
-  bool open(json::value_t type) {
-    if (stack_.size() >= kMaxHeaderDepth) {
-      error_ = absl::StrCat("the header nests deeper than ", kMaxHeaderDepth, " levels");
-      return false;
-    }
-    json* node = put(json(type));
-    if (node == nullptr) return false;
-    // Only the innermost open container grows, so this pointer stays valid until it closes.
-    stack_.push_back({node, {}});
-    return true;
-  }
-
-  bool close() {
-    stack_.pop_back();
-    return true;
-  }
-
-  json& root_;
-  std::vector<Frame> stack_;
-  std::string error_;
-};
 
 // A JSON array of at most `max_count` non-negative integers.
 bool read_uints(const json& j, size_t max_count, std::vector<uint64_t>* out) {
@@ -284,10 +197,10 @@ absl::StatusOr<Weights> parse_weights_impl(std::string_view bytes, const std::st
   const std::string_view text = bytes.substr(kHeaderLengthBytes, header_size);
   const std::string_view data = bytes.substr(kHeaderLengthBytes + header_size);
 
-  json header;
-  HeaderBuilder builder(header);
-  if (!json::sax_parse(text.data(), text.data() + text.size(), &builder))
-    return bad(where, absl::StrCat("invalid JSON header: ", builder.error()));
+  auto parsed = json_parse_strict(text, {.max_depth = kMaxHeaderDepth, .max_array_length = kMaxHeaderArrayLength});
+  if (!parsed.ok()) return absl::Status(parsed.status().code(), absl::StrCat(where, ": invalid JSON header: ",
+                                                                           parsed.status().message()));
+  const json& header = *parsed;
   if (!header.is_object()) return bad(where, "the header is not a JSON object");
 
   // The configuration first: it says which tensors the file must hold.

@@ -46,10 +46,9 @@
 #include <utility>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "absl/strings/str_cat.h"
 #include "engine/geometry/geometry.h"
+#include "engine/io/json_strict.h"
 #include "engine/scenario/validate.h"
 
 namespace ss {
@@ -59,53 +58,8 @@ using json = nlohmann::json;
 
 constexpr double kPlaceholder = -10000.0;  // the converters' "no data" value
 constexpr int kCurrentTimeIndex = 10;      // WOMD: 1 s of history at 10 Hz, then "now"
-// The format needs 5 levels (root / objects / object / position / point); the limit keeps hostile input from
-// building deep trees (recursive destruction, recursive error paths).
-constexpr size_t kMaxDepth = 32;
-constexpr size_t kMaxQuoted = 64;  // bytes of a user string quoted in an error message
 
-// Makes a user-supplied string safe to quote in a message: control bytes (and, when asked, every non-ASCII byte:
-// parser messages may quote invalid UTF-8) become \xNN; long strings are cut at a character boundary.
-std::string printable(std::string_view s, bool escape_non_ascii = false) {
-  std::string out;
-  size_t n = s.size();
-  bool cut = false;
-  if (n > kMaxQuoted) {
-    n = kMaxQuoted;
-    while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0) == 0x80) --n;  // don't split a UTF-8 sequence
-    cut = true;
-  }
-  for (size_t i = 0; i < n; ++i) {
-    unsigned char c = static_cast<unsigned char>(s[i]);
-    if (c < 0x20 || c == 0x7F || (escape_non_ascii && c >= 0x80)) {
-      static constexpr char kHex[] = "0123456789abcdef";
-      out += "\\x";
-      out += kHex[c >> 4];
-      out += kHex[c & 15];
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  if (cut) out += "...";
-  return out;
-}
-
-std::string quote_user(std::string_view s) { return absl::StrCat("\"", printable(s), "\""); }
-
-bool is_identifier(std::string_view s) {
-  if (s.empty() || std::isdigit(static_cast<unsigned char>(s[0]))) return false;
-  return std::all_of(s.begin(), s.end(),
-                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
-}
-
-void append_key(std::string& out, std::string_view key) {
-  if (is_identifier(key)) {
-    if (!out.empty()) out += '.';
-    out += key;
-  } else {
-    absl::StrAppend(&out, "[", quote_user(key), "]");
-  }
-}
+std::string quote_user(std::string_view s) { return absl::StrCat("\"", json_printable(s), "\""); }
 
 // Where a value sits in the document, as a chain of stack-allocated links; rendered only when an error names it.
 // Each link must outlive the links built on it: keep every level in a named variable.
@@ -128,7 +82,7 @@ class Path {
     } else if (bracket_) {
       absl::StrAppend(&out, "[", quote_user(name_), "]");
     } else {
-      append_key(out, name_);
+      json_append_key(out, name_);
     }
     return out;
   }
@@ -141,126 +95,6 @@ class Path {
   size_t index_ = 0;
   bool is_index_ = false;
   bool bracket_ = false;
-};
-
-// Builds the DOM from SAX events, which lets it reject duplicate keys and excessive nesting and name the JSON path
-// of a syntax error. (nlohmann's callback parser could do the first two, but rescans the parent container at every
-// object end: quadratic on large arrays.)
-class DomBuilder {
- public:
-  explicit DomBuilder(json& root) : root_(root) {}
-
-  bool null() { return put(json(nullptr)); }
-  bool boolean(bool v) { return put(json(v)); }
-  bool number_integer(json::number_integer_t v) { return put(json(v)); }
-  bool number_unsigned(json::number_unsigned_t v) { return put(json(v)); }
-  bool number_float(json::number_float_t v, const json::string_t&) { return put(json(v)); }
-  bool string(json::string_t& v) { return put(json(std::move(v))); }
-  bool binary(json::binary_t&) { return put(json(nullptr)); }  // only binary formats produce these
-  bool start_object(std::size_t) { return open(json::value_t::object); }
-  bool start_array(std::size_t) { return open(json::value_t::array); }
-  bool end_object() { return close(); }
-  bool end_array() { return close(); }
-
-  bool key(json::string_t& k) {
-    Frame& f = stack_.back();
-    f.has_key = false;  // the path of the object itself, for the message below
-    if (f.node->contains(k)) {
-      error_ = absl::StrCat(path(), path().empty() ? "" : ": ", "duplicate key ", quote_user(k));
-      return false;
-    }
-    f.key = std::move(k);
-    f.has_key = true;
-    return true;
-  }
-
-  bool parse_error(std::size_t, const std::string&, const json::exception& ex) {
-    // ex.what() is "[json.exception.parse_error.101] parse error at line 1, column 7: ..."; the tag is noise. The
-    // text may quote the offending bytes, which need not be UTF-8.
-    std::string_view what = ex.what();
-    if (size_t tag = what.find("] "); !what.empty() && what[0] == '[' && tag != std::string_view::npos)
-      what.remove_prefix(tag + 2);
-    std::string where = path();
-    error_ = absl::StrCat(where, where.empty() ? "" : ": ", "invalid JSON: ", printable_all(what));
-    return false;
-  }
-
-  const std::string& error() const { return error_; }
-
- private:
-  struct Frame {
-    json* node;
-    std::string key;  // objects: the key whose value is being parsed
-    bool has_key = false;
-  };
-
-  static std::string printable_all(std::string_view s) {
-    std::string out;
-    for (size_t i = 0; i < s.size(); i += kMaxQuoted) out += printable(s.substr(i, kMaxQuoted), true);
-    // printable() appends "..." only when it cuts; chunks of exactly kMaxQuoted bytes are never cut.
-    return out;
-  }
-
-  // The path of the value being parsed, e.g. objects[3].position[12].x.
-  std::string path() const {
-    std::string out;
-    for (size_t i = 0; i < stack_.size(); ++i) {
-      const Frame& f = stack_[i];
-      if (f.node->is_array()) {
-        // An open child container is already the array's last element; otherwise the next element is in progress.
-        const bool child_open = i + 1 < stack_.size();
-        absl::StrAppend(&out, "[", f.node->size() - (child_open ? 1 : 0), "]");
-      } else if (f.has_key) {
-        append_key(out, f.key);
-      }
-    }
-    return out;
-  }
-
-  // Stores a value in the innermost open container (or as the root) and returns its address. Pointers held in
-  // stack_ stay valid: only the innermost container grows, and its elements are never on the stack.
-  json* place(json&& v) {
-    if (stack_.empty()) {
-      root_ = std::move(v);
-      return &root_;
-    }
-    Frame& f = stack_.back();
-    if (f.node->is_array()) {
-      auto& arr = f.node->get_ref<json::array_t&>();
-      arr.push_back(std::move(v));
-      return &arr.back();
-    }
-    json& slot = f.node->get_ref<json::object_t&>()[f.key];
-    slot = std::move(v);
-    return &slot;
-  }
-
-  // A scalar: complete once placed, so the enclosing object's key no longer names the position.
-  bool put(json&& v) {
-    place(std::move(v));
-    if (!stack_.empty()) stack_.back().has_key = false;
-    return true;
-  }
-
-  bool open(json::value_t t) {
-    if (stack_.size() >= kMaxDepth) {
-      error_ = absl::StrCat(path(), ": nesting deeper than ", kMaxDepth, " levels");
-      return false;
-    }
-    json* node = place(json(t));
-    stack_.push_back(Frame{node, {}, false});
-    return true;
-  }
-
-  bool close() {
-    stack_.pop_back();
-    if (!stack_.empty()) stack_.back().has_key = false;  // the container was the value of that key: complete
-    return true;
-  }
-
-  json& root_;
-  std::vector<Frame> stack_;
-  std::string error_;
 };
 
 ObjectType object_type_from(std::string_view s, bool* ok) {
@@ -816,11 +650,11 @@ class Converter {
 
 absl::StatusOr<Scenario> scenario_from_gpudrive_json(std::string_view text, const std::string& where) {
   try {
-    json root;
-    DomBuilder builder(root);
-    if (!json::sax_parse(text.data(), text.data() + text.size(), &builder))
-      return absl::InvalidArgumentError(absl::StrCat(where, ": ", builder.error()));
-    return Converter(where).convert(root);
+    // The format needs 5 levels (root / objects / object / position / point); the limit keeps hostile input from
+    // building deep trees (recursive destruction, recursive error paths).
+    auto root = json_parse_strict(text, {.max_depth = 32});
+    if (!root.ok()) return absl::Status(root.status().code(), absl::StrCat(where, ": ", root.status().message()));
+    return Converter(where).convert(*root);
   } catch (const std::bad_alloc&) {
     // Sizes in the input are bounded by its length, so this means the input is too big for this machine.
     return absl::ResourceExhaustedError(absl::StrCat(where, ": out of memory reading ", text.size(), " bytes"));

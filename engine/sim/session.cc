@@ -570,9 +570,12 @@ void Session::sample_light_states(const Mat& h) {
 namespace ss {
 
 absl::Status Session::check_state(const StepState& s, const std::string& what) const {
-  const double fields[] = {s.x, s.y, s.heading, s.vx, s.vy, s.length, s.width, s.height};
-  for (double f : fields)
-    if (!std::isfinite(f)) return absl::InvalidArgumentError(absl::StrCat(what, " has a non-finite value"));
+  const std::pair<double, const char*> fields[] = {{s.x, "x"},   {s.y, "y"},         {s.heading, "heading"},
+                                                   {s.vx, "vx"}, {s.vy, "vy"},       {s.length, "length"},
+                                                   {s.width, "width"}, {s.height, "height"}};
+  for (const auto& [v, name] : fields)
+    if (!std::isfinite(v))
+      return absl::InvalidArgumentError(absl::StrCat(what, ": ", name, " is ", v, ", not a finite number"));
   if (std::abs(s.x) > kMaxCoordinate || std::abs(s.y) > kMaxCoordinate)
     return absl::InvalidArgumentError(absl::StrCat(what, " lies beyond ", kMaxCoordinate, " m"));
   if (s.length <= 0 || s.width <= 0 || s.height <= 0 || s.length > 30 || s.width > 10 || s.height > 10)
@@ -593,8 +596,11 @@ absl::Status Session::check_controls(const std::vector<ControlInput>& controls) 
     if (it == agents_.end()) return absl::InvalidArgumentError(absl::StrCat(what, ": no such agent in the session"));
     if (!it->controlled) return absl::InvalidArgumentError(absl::StrCat(what, ": the agent is not a controlled agent"));
     if (!seen.insert(c.agent_id).second) return absl::InvalidArgumentError(absl::StrCat(what, ": given twice"));
-    if (!std::isfinite(c.x) || !std::isfinite(c.y) || !std::isfinite(c.heading) || (c.speed && !std::isfinite(*c.speed)))
-      return absl::InvalidArgumentError(absl::StrCat(what, ": pose has a non-finite value"));
+    const std::pair<double, const char*> values[] = {
+        {c.x, "x"}, {c.y, "y"}, {c.heading, "heading"}, {c.speed.value_or(0), "speed"}};
+    for (const auto& [v, name] : values)
+      if (!std::isfinite(v))
+        return absl::InvalidArgumentError(absl::StrCat(what, ": ", name, " is ", v, ", not a finite number"));
     if (std::abs(c.x) > kMaxCoordinate || std::abs(c.y) > kMaxCoordinate)
       return absl::InvalidArgumentError(absl::StrCat(what, ": pose lies beyond ", kMaxCoordinate, " m"));
     if (std::abs(c.heading) > kMaxHeading)
@@ -611,6 +617,8 @@ absl::Status Session::check_controls(const std::vector<ControlInput>& controls) 
 }
 
 absl::StatusOr<StepResult> Session::tick(const std::vector<ControlInput>& controls) {
+  // Check everything first, once per tick: a bad input leaves the session as it was.
+  if (auto st = check_controls(controls); !st.ok()) return st;
   // The events are measured from the tick before this one (a stop line crossed, progress along the lane).
   const bool any_controlled = std::any_of(agents_.begin(), agents_.end(), [](const Agent& a) { return a.controlled; });
   std::optional<StepResult> before;
@@ -623,10 +631,8 @@ absl::StatusOr<StepResult> Session::tick(const std::vector<ControlInput>& contro
 }
 
 absl::StatusOr<StepResult> Session::advance_tick(const std::vector<ControlInput>& controls) {
-  // Check everything first: a bad input leaves the session as it was.
-  if (auto st = check_controls(controls); !st.ok()) return st;
   if (options_.tick_hz == 2) {
-    auto r = step(controls);
+    auto r = step_checked(controls);
     if (r.ok()) ++tick_;
     return r;
   }
@@ -635,7 +641,7 @@ absl::StatusOr<StepResult> Session::advance_tick(const std::vector<ControlInput>
   if ((tick_ + 1) % ticks_per_step() == 0) {
     std::vector<ControlInput> at_step;
     for (const auto& [id, c] : step_controls) at_step.push_back(c);
-    auto r = step(at_step);
+    auto r = step_checked(at_step);
     if (!r.ok()) return r.status();
     for (const ControlInput& c : controls) latest_pose_[c.agent_id] = c;
     step_controls_.clear();
@@ -659,6 +665,10 @@ StepResult Session::tick_view() const {
 absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& controls) {
   // Check everything first: a bad input leaves the session as it was.
   if (auto st = check_controls(controls); !st.ok()) return st;
+  return step_checked(controls);
+}
+
+absl::StatusOr<StepResult> Session::step_checked(const std::vector<ControlInput>& controls) {
   std::map<int64_t, const ControlInput*> by_id;
   for (const ControlInput& c : controls) by_id.emplace(c.agent_id, &c);
 

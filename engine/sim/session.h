@@ -153,8 +153,10 @@ class Session {
   void sample_motions(const Mat& h);  // h: the agents' motion-token outputs, in agent order
   void reject_motion_faults(const std::function<std::span<const float>(size_t)>& row);  // row(i): agent i's logits
   int allocate_slot();
-  // tick() without the events.
+  // tick() without the events; controls already checked.
   absl::StatusOr<StepResult> advance_tick(const std::vector<ControlInput>& controls);
+  // step() with controls already checked: tick() checks once at its entry and comes here.
+  absl::StatusOr<StepResult> step_checked(const std::vector<ControlInput>& controls);
   absl::Status check_state(const StepState& s, const std::string& what) const;
   // The one rule for a pose from a client: a controlled agent, given once, finite, on the map's scale, at most
   // kMaxStepDistance from the agent's pose at the last model step, speed in 0..100 m/s.

@@ -1,10 +1,10 @@
 """The server binary holds the runtime library only (engine/CMakeLists.txt): none of the offline tools library's code
-(engine/dataset: the SUMO converters, engine/eval: the metrics, engine/render: SVG) is linked into it.
+(offline/dataset: the SUMO converters, offline/eval: the metrics, offline/render: SVG) is linked into it.
 
 Every strong global symbol a tools object file defines (nm types T, D, B, R) must be absent from the server's defined
 symbols: a static archive member is linked whole, so one such symbol present means a tools object came in. Weak
 symbols (inline functions, template instances such as std::vector<double>) are shared by both sides and not counted.
-Run with SS_SERVER and SS_TOOLS_LIB set (tests/CMakeLists.txt)."""
+Run with SS_SERVER and SS_OFFLINE_LIB set (tests/CMakeLists.txt)."""
 import os
 import subprocess
 import unittest
@@ -24,7 +24,7 @@ def defined(path, types):
 
 class ServerSymbolsTest(unittest.TestCase):
     def test_no_tools_code_in_the_server(self):
-        tools = defined(os.environ["SS_TOOLS_LIB"], STRONG)
+        tools = defined(os.environ["SS_OFFLINE_LIB"], STRONG)
         server = defined(os.environ["SS_SERVER"], STRONG | set("tdbrWwVv"))
         # Not vacuous: the tools library defines the metrics and converters, the server the runtime's door.
         demangled = subprocess.run(["c++filt"], input="\n".join(sorted(tools)), capture_output=True, text=True,

@@ -5,10 +5,10 @@
 #include <string>
 #include <string_view>
 
-#include "engine/dataset/sumo_events.h"
-#include "engine/dataset/sumo_fcd.h"
-#include "engine/dataset/sumo_map.h"
-#include "engine/dataset/sumo_net.h"
+#include "offline/dataset/sumo_events.h"
+#include "offline/dataset/sumo_fcd.h"
+#include "offline/dataset/sumo_map.h"
+#include "offline/dataset/sumo_net.h"
 
 namespace {
 

@@ -1,6 +1,6 @@
 """scenestreamer-server --help: exits 0 without starting, and lists exactly the flags server/main.cc defines, each with
 the default Abseil holds for it (read back from --helpfull, Abseil's own listing), in the layout of the tools' --help
-(tools/command_line.h)."""
+(common/command_line.h)."""
 import os
 import re
 import subprocess

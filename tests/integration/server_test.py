@@ -244,8 +244,13 @@ class RpcTest(unittest.TestCase):
         code, msg = self.code(s.StepScene, pb.StepSceneRequest(session_id=c.session_id, poses=[
             pb.ControlledPose(agent_id=ego.id, x=float("nan"), y=0, heading=0)]))
         self.assertEqual(code, C.INVALID_ARGUMENT)
-        self.assertIn("poses[0]", msg)
-        # The engine's own check (a 1 km jump), then a retry with a good pose goes through.
+        self.assertIn(f"agent {ego.id}: x is nan, not a finite number", msg)  # checked once, by the engine
+        code, msg = self.code(s.StepScene, pb.StepSceneRequest(session_id=c.session_id, poses=[
+            pb.ControlledPose(agent_id=ego.id, x=ego.state.x, y=ego.state.y, heading=0)] * 2))
+        self.assertEqual(code, C.INVALID_ARGUMENT)
+        self.assertIn("poses[1].agent_id", msg)
+        self.assertIn("given twice", msg)
+        # A 1 km jump, then a retry with a good pose goes through.
         code, msg = self.code(s.StepScene, pb.StepSceneRequest(session_id=c.session_id, poses=[
             pb.ControlledPose(agent_id=ego.id, x=ego.state.x + 1000, y=ego.state.y, heading=0)]))
         self.assertEqual(code, C.INVALID_ARGUMENT)

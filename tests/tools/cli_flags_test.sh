@@ -1,5 +1,5 @@
 #!/bin/sh
-# The command lines of every subcommand (tools/command_line.h): --help lists exactly the command's flags with their
+# The command lines of every subcommand (common/command_line.h): --help lists exactly the command's flags with their
 # defaults; another command's flag, an unknown flag, a bad number or a missing value is refused with exit code 2 and a
 # message naming it. With SS_TRAIN set (tests/CMakeLists.txt, when the trainer is built), scenestreamer-train too.
 # usage: cli_flags_test.sh SCENESTREAMER DATA_DIR
@@ -38,11 +38,12 @@ refused() {
 help "$bin" inspect -- json
 help "$bin" convert -- out wosac-submission submission-metadata
 help "$bin" init-weights -- config seed out
-help "$bin" simulate -- scenario model out mode sdc steps seed rollout index top-p temperature motion-reject max-agents densify-target
+help "$bin" simulate -- scenario model out mode sdc steps seed rollout index top-p temperature motion-reject max-agents densify-target \
+  kv-precision matmul-precision
 help "$bin" bench -- json model scenario steps long-steps kv-precision matmul-precision motion-reject
 help "$bin" render -- scenario index step animate radius out
 help "$bin" eval -- data model mode rollouts seed baseline sdc ego json plots threads compare bootstrap wosac-submission \
-  submission-metadata submission top-p temperature motion-reject
+  submission-metadata submission top-p temperature motion-reject kv-precision matmul-precision
 help "$bin" dataset sumo -- out scenarios seed networks radius map-radius workers warmup record egos-per-window \
   shard-size sumo-bin sumo-home python tmp keep-temp first-job quiet
 help "$bin" dataset stats -- json markdown
@@ -74,7 +75,7 @@ refused "--steps: Illegal value 'zero'" "$bin" bench --steps zero
 refused "Illegal value '-1' specified for flag 'seed'" "$bin" init-weights --config small --out "$tmp/x" --seed -1
 refused "--json: Illegal value 'maybe'" "$bin" inspect --json=maybe "$scenario"
 refused "--out needs a value" "$bin" convert "$scenario" --out
-# A command that takes no files refuses a stray argument (one rule, in tools/command_line.cc).
+# A command that takes no files refuses a stray argument (one rule, in common/command_line.cc).
 refused "unexpected argument 'stray'" "$bin" bench stray
 refused "unexpected argument 'stray'" "$bin" init-weights --config small --out "$tmp/x" stray
 refused "unexpected argument 'stray'" "$bin" dataset sumo stray --out "$tmp/s" --scenarios 1 --seed 1

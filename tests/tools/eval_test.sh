@@ -173,7 +173,7 @@ grep -q "two result files" "$tmp/err"
 if "$bin" eval --compare "$tmp/A.json" "$tmp/B.json" --bootstrap 5 2> "$tmp/err"; then exit 1; fi
 grep -q "bootstrap" "$tmp/err"
 if "$bin" eval --compare "$tmp/A.json" "$tmp/progress" 2> "$tmp/err"; then exit 1; fi
-grep -q "not JSON" "$tmp/err"
+grep -q "invalid JSON" "$tmp/err"
 # The thread count changes nothing.
 "$bin" eval --data "$@" --model "$tmp/w.safetensors" --mode motion --rollouts 2 --seed 1 --threads 1 \
   --json "$tmp/one.json" > /dev/null 2>&1

@@ -113,5 +113,12 @@ if "$bin" simulate --scenario "$scenario" --model "$tmp/w.safetensors" --sdc ego
 grep -q "ego" "$tmp/err"
 if "$bin" simulate --scenario "$scenario" --model "$tmp/w.safetensors" --top-p 2 --out "$tmp/x.tfrecord" 2> "$tmp/err"; then exit 1; fi
 grep -q "top_p" "$tmp/err"
+if "$bin" simulate --scenario "$scenario" --model "$tmp/w.safetensors" --kv-precision bf16 --out "$tmp/x.tfrecord" 2> "$tmp/err"; then exit 1; fi
+grep -q "unknown KV precision 'bf16'" "$tmp/err"
 test ! -e "$tmp/x.tfrecord"
+# The precisions are the engine's options, as the server's flags set them: fp32 keys and products give other bits.
+"$bin" simulate --scenario "$scenario" --model "$tmp/w.safetensors" --steps 8 --seed 1 --out "$tmp/p16.tfrecord" > /dev/null
+"$bin" simulate --scenario "$scenario" --model "$tmp/w.safetensors" --steps 8 --seed 1 --kv-precision fp32 \
+  --matmul-precision fp32 --out "$tmp/p32.tfrecord" > /dev/null
+if cmp -s "$tmp/p16.tfrecord" "$tmp/p32.tfrecord"; then echo "--kv-precision fp32 changed nothing" >&2; exit 1; fi
 echo "simulate_test: ok"

@@ -9,7 +9,7 @@
 #include "engine/io/json_text.h"
 #include "engine/scenario/read.h"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/dataset/dataset_commands.h"
 #include "tools/dataset/scenario_stats.h"
 #include "tools/shared_flags.h"

@@ -20,7 +20,7 @@
 #include "engine/io/json_text.h"
 #include "nlohmann/json.hpp"
 #include "spdlog/spdlog.h"
-#include "tools/command_line.h"
+#include "common/command_line.h"
 #include "tools/dataset/dataset_commands.h"
 #include "tools/dataset/job.h"
 #include "tools/dataset/job_context.h"

@@ -9,7 +9,7 @@
 
 #include "absl/status/statusor.h"
 #include "engine/base/rng.h"
-#include "engine/dataset/sumo_fcd.h"
+#include "offline/dataset/sumo_fcd.h"
 #include "tools/dataset/job_context.h"
 
 namespace ss::dataset {

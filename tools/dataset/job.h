@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "engine/dataset/windows.h"
+#include "offline/dataset/windows.h"
 #include "engine/tokens/fidelity.h"
 #include "tools/dataset/sumo_tools.h"
 

@@ -6,8 +6,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "engine/dataset/sumo_net.h"
-#include "engine/dataset/xml_scan.h"
+#include "offline/dataset/sumo_net.h"
+#include "offline/dataset/xml_scan.h"
 
 namespace ss::dataset {
 namespace {

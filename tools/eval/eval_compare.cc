@@ -7,10 +7,11 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
-#include "engine/eval/estimators.h"
-#include "engine/eval/evaluate.h"
-#include "engine/eval/meta_metric.h"
+#include "offline/eval/estimators.h"
+#include "offline/eval/evaluate.h"
+#include "offline/eval/meta_metric.h"
 #include "engine/io/file_io.h"
+#include "engine/io/json_strict.h"
 
 namespace ss::cli {
 namespace {
@@ -29,8 +30,9 @@ absl::StatusOr<EvalFile> read_eval_file(const std::string& path) {
   if (!text.ok()) return text.status();
   EvalFile f;
   f.path = path;
-  f.root = json::parse(*text, nullptr, /*allow_exceptions=*/false);
-  if (f.root.is_discarded()) return absl::InvalidArgumentError(absl::StrCat(path, ": not JSON"));
+  auto root = json_parse_strict(*text);
+  if (!root.ok()) return absl::Status(root.status().code(), absl::StrCat(path, ": ", root.status().message()));
+  f.root = *std::move(root);
   if (!f.root.is_object() || !f.root.contains("per_scenario") || !f.root["per_scenario"].is_array())
     return absl::InvalidArgumentError(absl::StrCat(path, ": not an eval result (no per_scenario array)"));
   if (!f.root.contains("sdc") || !f.root["sdc"].is_string())

@@ -1,11 +1,11 @@
 // `scenestreamer eval --compare A.json B.json`: two `eval --json` results of the same scenarios, each metric's
-// difference B - A with a paired bootstrap interval over scenarios (engine/eval/compare.h).
+// difference B - A with a paired bootstrap interval over scenarios (offline/eval/compare.h).
 #pragma once
 
 #include <string>
 
 #include "absl/status/statusor.h"
-#include "engine/eval/compare.h"
+#include "offline/eval/compare.h"
 #include "nlohmann/json.hpp"
 
 namespace ss::cli {

@@ -8,22 +8,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "offline/render/svg_text.h"
 
 namespace ss::cli {
 namespace {
 
 constexpr double kWidth = 640, kHeight = 360, kLeft = 56, kRight = 16, kTop = 40, kBottom = 48;
-
-std::string escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '<') out += "&lt;";
-    else if (c == '>') out += "&gt;";
-    else if (c == '&') out += "&amp;";
-    else out += c;
-  }
-  return out;
-}
 
 std::vector<double> normalised(const std::vector<double>& counts) {
   double total = 0;
@@ -57,42 +47,26 @@ std::string histogram_svg(const std::string& title, const std::string& label, do
   if (top <= 0) top = 1;
   const double plot_w = kWidth - kLeft - kRight, plot_h = kHeight - kTop - kBottom;
   const double bar = bins ? plot_w / bins : plot_w;
-  std::string s = absl::StrFormat(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" viewBox=\"0 0 %.0f %.0f\" "
-      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
-      kWidth, kHeight, kWidth, kHeight);
-  absl::StrAppendFormat(&s, "<text x=\"%.0f\" y=\"22\" font-size=\"15\">%s</text>\n", kLeft, escape(title));
+  SvgWriter s(kWidth, kHeight, 12);
+  s.text(kLeft, 22, title, "font-size=\"15\"");
   // Bars: the log filled, the rollouts outlined on top, so both stay visible where they overlap.
   for (size_t i = 0; i < bins; ++i) {
     const double x = kLeft + i * bar;
     const double ha = i < a.size() ? a[i] / top * plot_h : 0, hb = i < b.size() ? b[i] / top * plot_h : 0;
-    absl::StrAppendFormat(&s, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"#9ecae1\"/>\n", x + 1,
-                          kTop + plot_h - ha, bar - 2, ha);
-    absl::StrAppendFormat(&s,
-                          "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"none\" stroke=\"#d62728\" "
-                          "stroke-width=\"1.5\"/>\n",
-                          x + 1, kTop + plot_h - hb, bar - 2, hb);
+    s.rect(x + 1, kTop + plot_h - ha, bar - 2, ha, "fill=\"#9ecae1\"");
+    s.rect(x + 1, kTop + plot_h - hb, bar - 2, hb, "fill=\"none\" stroke=\"#d62728\" stroke-width=\"1.5\"");
   }
   // Axes with the range ends and the middle, and the largest share.
-  absl::StrAppendFormat(&s, "<line x1=\"%.0f\" y1=\"%.0f\" x2=\"%.0f\" y2=\"%.0f\" stroke=\"black\"/>\n", kLeft,
-                        kTop + plot_h, kLeft + plot_w, kTop + plot_h);
-  absl::StrAppendFormat(&s, "<line x1=\"%.0f\" y1=\"%.0f\" x2=\"%.0f\" y2=\"%.0f\" stroke=\"black\"/>\n", kLeft, kTop,
-                        kLeft, kTop + plot_h);
+  s.line(kLeft, kTop + plot_h, kLeft + plot_w, kTop + plot_h, "stroke=\"black\"");
+  s.line(kLeft, kTop, kLeft, kTop + plot_h, "stroke=\"black\"");
   for (int k = 0; k <= 2; ++k)
-    absl::StrAppendFormat(&s, "<text x=\"%.1f\" y=\"%.0f\" text-anchor=\"middle\">%g</text>\n", kLeft + k * plot_w / 2,
-                          kTop + plot_h + 16, min + k * (max - min) / 2);
-  absl::StrAppendFormat(&s, "<text x=\"%.0f\" y=\"%.0f\" text-anchor=\"end\">%.2f</text>\n", kLeft - 4, kTop + 4, top);
-  absl::StrAppendFormat(&s, "<text x=\"%.0f\" y=\"%.0f\" text-anchor=\"end\">0</text>\n", kLeft - 4, kTop + plot_h);
-  absl::StrAppendFormat(&s,
-                        "<rect x=\"%.0f\" y=\"%.0f\" width=\"12\" height=\"10\" fill=\"#9ecae1\"/><text x=\"%.0f\" "
-                        "y=\"%.0f\">log</text>\n",
-                        kLeft, kHeight - 18, kLeft + 16, kHeight - 9);
-  absl::StrAppendFormat(&s,
-                        "<rect x=\"%.0f\" y=\"%.0f\" width=\"12\" height=\"10\" fill=\"none\" stroke=\"#d62728\"/>"
-                        "<text x=\"%.0f\" y=\"%.0f\">%s</text>\n",
-                        kLeft + 70, kHeight - 18, kLeft + 86, kHeight - 9, escape(label));
-  s += "</svg>\n";
-  return s;
+    s.text(kLeft + k * plot_w / 2, kTop + plot_h + 16, absl::StrFormat("%g", min + k * (max - min) / 2),
+           "text-anchor=\"middle\"");
+  s.text(kLeft - 4, kTop + 4, absl::StrFormat("%.2f", top), "text-anchor=\"end\"");
+  s.text(kLeft - 4, kTop + plot_h, "0", "text-anchor=\"end\"");
+  s.rect(kLeft, kHeight - 18, 12, 10, "fill=\"#9ecae1\"").text(kLeft + 16, kHeight - 9, "log");
+  s.rect(kLeft + 70, kHeight - 18, 12, 10, "fill=\"none\" stroke=\"#d62728\"").text(kLeft + 86, kHeight - 9, label);
+  return s.finish();
 }
 
 absl::Status write_feature_plots(const std::string& dir, const std::string& label, const DatasetEvaluation& d,

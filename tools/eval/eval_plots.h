@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "engine/eval/aggregate.h"
+#include "offline/eval/aggregate.h"
 
 namespace ss::cli {
 

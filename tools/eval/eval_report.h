@@ -5,8 +5,8 @@
 #include <span>
 #include <string>
 
-#include "engine/eval/aggregate.h"
-#include "engine/eval/evaluate.h"
+#include "offline/eval/aggregate.h"
+#include "offline/eval/evaluate.h"
 #include "nlohmann/json.hpp"
 
 namespace ss::cli {

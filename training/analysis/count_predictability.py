@@ -5,7 +5,7 @@ Why: full mode's goal asks each val scenario's generated agent count to land wit
 how far any predictor that sees only the map can get (docs/model.md, "How far the map alone predicts the count").
 
 Data: ../shared/data/womd/json/{train,val} (GPUDrive/Nocturne JSON, 91 frames, current frame 10).
-Count (mirrors engine/eval/placed_agents.cc log_placed_agents + engine/map/focus.cc):
+Count (mirrors offline/eval/placed_agents.cc log_placed_agents + engine/map/focus.cc):
   at frame 10, tracks of type vehicle/pedestrian/cyclist, valid, within 100 m of the centre.
   centre = SDC (metadata.sdc_track_index) position at frame 10; files without metadata have no SDC,
   and the project then uses scenario_focus(): mean position of every track valid at frame 10.

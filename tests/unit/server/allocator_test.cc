@@ -20,7 +20,7 @@ TEST(AllocatorTest, JemallocServesMalloc) {
   EXPECT_EQ(version->rfind("jemalloc ", 0), 0u) << *version;
 }
 
-// The project's settings (server/malloc_conf.cc) reach jemalloc: no arena of its own for blocks of 8 MiB and more
+// The project's settings (common/malloc_conf.cc) reach jemalloc: no arena of its own for blocks of 8 MiB and more
 // (docs/performance.md: with it, a server on many maps faulted their pages in again and again).
 TEST(AllocatorTest, TheProjectsSettingsReachJemalloc) {
   size_t threshold = 1, size = sizeof threshold;

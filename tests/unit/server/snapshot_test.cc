@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include "engine/base/rng.h"
+#include "engine/io/file_io.h"
 #include "state/snapshot.pb.h"
 
 namespace ss::server {

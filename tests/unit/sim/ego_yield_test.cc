@@ -4,7 +4,7 @@
 // its draw when no control passes); without them in every one. docs/closed-loop.md has the trained model's figures.
 #include <gtest/gtest.h>
 
-#include "engine/eval/ego_loop.h"
+#include "offline/eval/ego_loop.h"
 #include "tests/unit/sim/session_fixture.h"
 
 namespace ss {

@@ -4,7 +4,7 @@
 
 #include "engine/model/model.h"
 #include "engine/scenario/read.h"
-#include "engine/sim/teacher_forcing.h"
+#include "training/teacher_forcing.h"
 #include "training/batch.h"
 #include "training/incremental.h"
 #include "training/model.h"

@@ -8,7 +8,7 @@
 #include <sstream>
 
 #include "engine/scenario/read.h"
-#include "engine/sim/teacher_forcing.h"
+#include "training/teacher_forcing.h"
 #include "tests/unit/training/training_fixture.h"
 #include "training/batch.h"
 #include "training/loss.h"

@@ -7,7 +7,7 @@
 
 #include "engine/model/config.h"
 #include "engine/scenario/read.h"
-#include "engine/sim/teacher_forcing.h"
+#include "training/teacher_forcing.h"
 
 namespace ss::train::testing {
 

@@ -1,0 +1,28 @@
+// Where full mode puts its own agents, against the log (issue 11's goals for generated scenes): how many agents the
+// model places in its region at the first step, and how many of its vehicles stand off the road.
+#pragma once
+
+#include <span>
+
+#include "offline/eval/mmd.h"
+#include "engine/map/road_edges.h"
+#include "engine/scenario/scenario.h"
+
+namespace ss {
+
+struct PlacedAgents {
+  int agents = 0;            // vehicles, pedestrians and cyclists
+  int vehicles = 0;          // of which vehicles, scored for offroad (0 when the map has no road edge)
+  int offroad_vehicles = 0;  // vehicles whose most off-road box corner lies beyond the road edge (WOSAC: > 0 m)
+};
+
+// Counts `agents`, scoring each vehicle's box at its own z, or (NaN z: the model works in the plane) at the z of
+// the nearest map point. A map without road edges scores no vehicle.
+PlacedAgents placed_agents(std::span<const InitialAgent> agents, std::span<const double> z, const Scenario& map,
+                           const RoadEdges& edges);
+
+// The log's side: agents of the model's types valid at the current frame within `radius` of `centre`, the SDC
+// included when `with_sdc` (when the model generated a stand-in for it too), at their logged z.
+PlacedAgents log_placed_agents(const Scenario& s, const RoadEdges& edges, Vec2 centre, double radius, bool with_sdc);
+
+}  // namespace ss
