@@ -114,7 +114,7 @@ absl::StatusOr<InjectRequest> inject_from_proto(const pb::InjectAgentRequest& r)
     q.near = Vec2{r.near().x(), r.near().y()};
   }
   if (auto st = finite(r.near_radius(), "near_radius"); !st.ok()) return st;
-  if (r.near_radius() > 0) q.near_radius = r.near_radius();
+  if (r.near_radius() != 0) q.near_radius = r.near_radius();  // 0: unset; the engine checks the value
   if (r.has_state()) {
     auto s = state_from_proto(r.state(), "state");
     if (!s.ok()) return s.status();

@@ -82,8 +82,10 @@ class SnapshotDirTest(unittest.TestCase):
                 # the write itself on a loaded 2-core machine) before the kill must be in the restored session.
                 due = [t for when, t in ticks if when <= killed_at - INTERVAL_S - 0.5]
                 floor = due[-1] if due else 0
+                rate = len(ticks) / (ticks[-1][0] - ticks[0][0])
                 print(f"{clients} clients: {sid} acknowledged {ticks[-1][1]} ticks, restored at tick {restored} "
-                      f"(floor {floor})", flush=True)
+                      f"(floor {floor}): {ticks[-1][1] - restored} ticks lost, {(ticks[-1][1] - restored) / rate:.2f} "
+                      f"s of its stepping at {rate:.0f} ticks/s", flush=True)
                 self.assertGreaterEqual(restored, floor, sid)
                 self.assertLessEqual(restored, ticks[-1][1] + 1, sid)
 

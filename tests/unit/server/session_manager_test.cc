@@ -360,6 +360,26 @@ TEST_F(ManagerTest, OneTenantNeverDropsAnothersSessionNorLearnsItsCounts) {
   EXPECT_TRUE(m.get("a2", "alice").ok());
 }
 
+// Per-tenant quotas: a tenant at its own cap is refused with its own figures, and the other tenants still create.
+TEST_F(ManagerTest, ATenantQuotaHoldsAndLeavesRoomForTheOthers) {
+  ManagerOptions o;
+  o.max_sessions = 8;
+  o.tenant_max_sessions = 2;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  std::string id;
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a1", soon(), &id).ok());
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a2", soon(), &id).ok());
+  auto third = m.create("alice", {*name_, ""}, {}, 0, "a3", soon(), &id);
+  EXPECT_EQ(third.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_NE(third.status().message().find("--tenant_max_sessions=2"), std::string::npos) << third.status();
+  EXPECT_EQ(m.fork("a1", "alice", "", soon()).status().code(), absl::StatusCode::kResourceExhausted);
+  ASSERT_TRUE(m.create("bob", {*name_, ""}, {}, 0, "b1", soon(), &id).ok());
+  ASSERT_TRUE(m.create("bob", {*name_, ""}, {}, 0, "b2", soon(), &id).ok());
+  ASSERT_TRUE(m.close("a1", "alice").ok());
+  EXPECT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a3", soon(), &id).ok());
+}
+
 // Once CloseSession let a StepScene of many ticks compute to its end and return OK.
 TEST_F(ManagerTest, CloseStopsALongStepOfTheSession) {
   ManagerOptions o;
