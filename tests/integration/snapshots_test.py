@@ -18,6 +18,10 @@ import subprocess
 C = grpc.StatusCode
 INTERVAL_S = 1.0  # --snapshot_interval_s
 STEP_S = 3.0      # how long the clients step back to back before the kill
+# Ticks a call: an engine call holds its session from its first tick to its last, so with 20 the session is free only
+# in the moment between two calls, and the background snapshot of old, which skipped a session it could not take at
+# once, found it free in about 1 % of its passes (with one tick a call, in 5-30 %: a test that could pass by luck).
+TICKS_A_CALL = 20
 
 
 def first_scenario(stub):
@@ -40,21 +44,24 @@ class SnapshotDirTest(unittest.TestCase):
         shutil.rmtree(self.root, ignore_errors=True)
 
     def crash_while_stepping(self, clients):
-        """`clients` sessions, each stepped back to back by its own thread (one tick a call, no pause: the RL loop)
-        for STEP_S, then kill -9 while they still step. Returns, per session, the acknowledged ticks as (wall time,
+        """`clients` sessions, each stepped back to back by its own thread (TICKS_A_CALL ticks a call, no pause) for
+        STEP_S, then kill -9 while they still step. Returns, per session, the acknowledged ticks as (wall time,
         tick) and the kill's wall time."""
         srv = Server(f"--snapshot_interval_s={INTERVAL_S}", "--evict_idle_s=1000", snapshot_dir=self.dir).start()
         name = first_scenario(srv.stub)
         ids = [srv.stub.CreateSession(pb.CreateSessionRequest(scenario_name=name, session_id=f"busy{i}",
                                                               model_drives_sdc=True)).session_id
                for i in range(clients)]
+        # The first calls of fresh sessions are slow (2-3 s here for 20 ticks each of four): made before the clock runs.
+        for sid in ids:
+            srv.stub.StepScene(pb.StepSceneRequest(session_id=sid, num_ticks=TICKS_A_CALL), timeout=120)
         acked = {sid: [] for sid in ids}
         stop = threading.Event()
 
         def loop(sid):
             while not stop.is_set():
                 try:
-                    r = srv.stub.StepScene(pb.StepSceneRequest(session_id=sid), timeout=30)
+                    r = srv.stub.StepScene(pb.StepSceneRequest(session_id=sid, num_ticks=TICKS_A_CALL), timeout=30)
                 except grpc.RpcError:
                     return  # the kill
                 acked[sid].append((time.time(), r.ticks[-1].tick))
@@ -74,7 +81,7 @@ class SnapshotDirTest(unittest.TestCase):
         acked, killed_at = self.crash_while_stepping(clients)
         with Server(f"--snapshot_interval_s={INTERVAL_S}", snapshot_dir=self.dir) as srv:
             for sid, ticks in acked.items():
-                self.assertGreater(len(ticks), 10, f"{sid} was hardly stepped: {len(ticks)} ticks")
+                self.assertGreater(len(ticks), 3, f"{sid} was hardly stepped: {len(ticks)} calls")
                 code, msg = error_of(srv.stub.GetSession, pb.GetSessionRequest(session_id=sid))
                 self.assertIsNone(code, f"{sid} ({ticks[-1][1]} ticks acknowledged) was lost: {code} {msg}")
                 restored = srv.stub.GetSession(pb.GetSessionRequest(session_id=sid)).current.tick
@@ -82,12 +89,12 @@ class SnapshotDirTest(unittest.TestCase):
                 # the write itself on a loaded 2-core machine) before the kill must be in the restored session.
                 due = [t for when, t in ticks if when <= killed_at - INTERVAL_S - 0.5]
                 floor = due[-1] if due else 0
-                rate = len(ticks) / (ticks[-1][0] - ticks[0][0])
+                rate = (ticks[-1][1] - ticks[0][1]) / (ticks[-1][0] - ticks[0][0])
                 print(f"{clients} clients: {sid} acknowledged {ticks[-1][1]} ticks, restored at tick {restored} "
                       f"(floor {floor}): {ticks[-1][1] - restored} ticks lost, {(ticks[-1][1] - restored) / rate:.2f} "
                       f"s of its stepping at {rate:.0f} ticks/s", flush=True)
                 self.assertGreaterEqual(restored, floor, sid)
-                self.assertLessEqual(restored, ticks[-1][1] + 1, sid)
+                self.assertLessEqual(restored, ticks[-1][1] + TICKS_A_CALL, sid)
 
     def test_a_session_stepped_back_to_back_survives_kill_9(self):
         # Once the background snapshot skipped every session whose lock it could not take at that instant: a
