@@ -151,7 +151,10 @@ absl::Status SessionManager::run_ticks(ManagedSession& s, const std::vector<Cont
       s.cv.notify_all();
     }
     // A session stepped back to back is never free when the reaper looks (it takes engine_mu only when no call holds
-    // it), so its stepping thread saves it here, at a tick boundary, once its snapshot is an interval old.
+    // it), so its stepping thread saves it here, at a tick boundary, once its snapshot is an interval old. Measured
+    // (docs/deployment.md, Snapshots): 17 ms median for the one call an interval that saves, and kill -9 then lost
+    // 0.15-0.71 s of sessions stepped back to back at a 1 s interval, where the reaper alone lost them whole.
+    // Saving here rather than handing the bytes to a writer thread keeps one owner of a session's saves.
     registry_.save_if_due(s);
   }
   return absl::OkStatus();
