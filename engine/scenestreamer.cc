@@ -1,9 +1,11 @@
 #include "engine/scenestreamer.h"
 
+#include <bit>
 #include <map>
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
+#include "engine/geometry/limits.h"
 #include "engine/model/linalg.h"
 #include "engine/model/weights.h"
 #include "engine/offline.h"
@@ -30,18 +32,6 @@ class Engine {
 
 namespace {
 
-absl::Status check_limits(const Engine& e, const Scenario& s, const std::string& where) {
-  if (static_cast<int>(s.tracks.size()) > e.options.max_scenario_tracks)
-    return absl::ResourceExhaustedError(absl::StrCat(where, ": ", std::to_string(s.tracks.size()),
-                                                     " tracks, above the limit of ",
-                                                     std::to_string(e.options.max_scenario_tracks)));
-  if (static_cast<int>(s.map_features.size()) > e.options.max_map_features)
-    return absl::ResourceExhaustedError(absl::StrCat(where, ": ", std::to_string(s.map_features.size()),
-                                                     " map features, above the limit of ",
-                                                     std::to_string(e.options.max_map_features)));
-  return absl::OkStatus();
-}
-
 absl::StatusOr<std::shared_ptr<const Scenario>> resolve(Engine& e, const SessionSource& source) {
   if (!source.scenario_name.empty() && !source.womd_bytes.empty())
     return absl::InvalidArgumentError("scenario: give either scenario_name or womd_bytes, not both");
@@ -57,10 +47,51 @@ absl::StatusOr<std::shared_ptr<const Scenario>> resolve(Engine& e, const Session
     return absl::ResourceExhaustedError(absl::StrCat("womd_bytes: ", std::to_string(source.womd_bytes.size()),
                                                      " bytes, above the limit of ",
                                                      std::to_string(e.options.max_scenario_bytes)));
-  auto s = scenario_from_womd_bytes(source.womd_bytes, "womd_bytes");
-  if (!s.ok()) return absl::InvalidArgumentError(s.status().message());
-  if (auto st = check_limits(e, *s, "womd_bytes"); !st.ok()) return st;
+  // The limits are checked on the wire, before anything is built (a refused scenario costs no memory).
+  WomdLimits limits;
+  limits.max_tracks = e.options.max_scenario_tracks;
+  limits.max_map_features = e.options.max_map_features;
+  limits.max_frames = e.options.max_scenario_frames;
+  limits.max_map_points = e.options.max_map_points;
+  auto s = scenario_from_womd_bytes(source.womd_bytes, "womd_bytes", limits);
+  if (!s.ok())
+    return s.status().code() == absl::StatusCode::kResourceExhausted ? s.status()
+                                                                      : absl::InvalidArgumentError(s.status().message());
   return std::make_shared<const Scenario>(std::move(*s));
+}
+
+// What an allocation of n bytes takes: jemalloc's size classes, four per doubling (a 1 MiB + 1 string takes 1.25 MiB).
+uint64_t allocated(uint64_t n) {
+  if (n <= 16) return n == 0 ? 0 : 16;
+  const int k = 63 - std::countl_zero(n - 1);  // 2^k < n <= 2^(k+1)
+  const uint64_t step = uint64_t{1} << std::max(k - 2, 4);
+  return (n + step - 1) / step * step;
+}
+template <class T>
+uint64_t heap(const std::vector<T>& v) {
+  return allocated(v.capacity() * sizeof(T));
+}
+uint64_t heap(const std::string& s) {
+  return s.capacity() > 15 ? allocated(s.capacity() + 1) : 0;  // libstdc++ keeps up to 15 characters in the string
+}
+
+// The heap bytes a scenario holds (every vector's and string's capacity, nested ones included) plus the struct.
+uint64_t scenario_bytes(const Scenario& s) {
+  uint64_t b = sizeof(Scenario) + heap(s.id) + heap(s.timestamps) + heap(s.tracks) + heap(s.map_features) +
+               heap(s.signals) + heap(s.objects_of_interest) + heap(s.tracks_to_predict) + heap(s.laser_data) +
+               heap(s.camera_tokens);
+  for (const Track& t : s.tracks) b += heap(t.states);
+  for (const MapFeature& f : s.map_features) {
+    b += heap(f.points) + heap(f.stop_sign_lanes) + heap(f.lane.entry_lanes) + heap(f.lane.exit_lanes) +
+         heap(f.lane.left_neighbors) + heap(f.lane.right_neighbors) + heap(f.lane.left_boundaries) +
+         heap(f.lane.right_boundaries);
+    for (const LaneNeighbor& n : f.lane.left_neighbors) b += heap(n.boundaries);
+    for (const LaneNeighbor& n : f.lane.right_neighbors) b += heap(n.boundaries);
+  }
+  for (const auto& frame : s.signals) b += heap(frame);
+  for (const std::string& x : s.laser_data) b += heap(x);
+  for (const std::string& x : s.camera_tokens) b += heap(x);
+  return b;
 }
 
 bool bundled(const Engine& e, const Scenario& s) {
@@ -148,11 +179,28 @@ void SessionDeleter::operator()(Session* s) const { delete s; }
 absl::StatusOr<SessionPtr> session_create(Engine& engine, const SessionSource& source, const SessionOptions& options) {
   auto scenario = resolve(engine, source);
   if (!scenario.ok()) return scenario.status();
-  auto map = engine.maps->get(**scenario);
+  const Scenario& sc = **scenario;
+  // The SDC is the controlled agent unless the host says otherwise: a scenario without one valid now would leave
+  // the session with no controlled agent, which the caller did not ask for.
+  if (options.controlled_ids.empty() && options.control_sdc &&
+      (sc.sdc_track_index < 0 || !sc.tracks[sc.sdc_track_index].states[sc.current_time_index].valid))
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the scenario has no SDC valid at its current frame (",
+        sc.sdc_track_index < 0 ? std::string("it names none")
+                               : absl::StrCat("track ", sc.tracks[sc.sdc_track_index].id, " is not valid at frame ",
+                                              sc.current_time_index),
+        "), so no agent would be controlled: set model_drives_sdc to let the model drive every agent, or name "
+        "controlled_agent_ids"));
+  auto map = engine.maps->get(sc);
   if (!map.ok()) return map.status();
   auto s = Session::create(engine.model, *scenario, *map, options);
   if (!s.ok()) return s.status();
-  (*s)->set_event_map(event_map_for(engine, **scenario));
+  // Full mode places its own agents; every other mode starts from the log's, and a session of none is a mistake.
+  if (options.mode != SessionMode::full && (*s)->tick_view().agents.empty())
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the session would have no agent: no vehicle, pedestrian or cyclist of the scenario is valid at its current "
+        "frame ", sc.current_time_index, " within roi_radius ", options.roi_radius, " m"));
+  (*s)->set_event_map(event_map_for(engine, sc));
   return SessionPtr(s->release());
 }
 
@@ -174,6 +222,9 @@ absl::StatusOr<StepResult> session_tick(Session& session, const std::vector<Cont
 StepResult session_view(const Session& session) { return session.tick_view(); }
 int64_t session_tick_index(const Session& session) { return session.tick_index(); }
 absl::StatusOr<std::vector<int64_t>> session_inject(Session& session, const InjectRequest& request) {
+  if (!(request.near_radius > 0 && request.near_radius <= kMaxCoordinate))
+    return absl::InvalidArgumentError(absl::StrCat("near_radius ", request.near_radius, " is not a distance in (0, ",
+                                                   kMaxCoordinate, "] m"));
   return session.inject(request);
 }
 absl::Status session_force(Session& session, const StateForceRequest& request) { return session.state_force(request); }
@@ -187,12 +238,10 @@ uint64_t session_memory_bytes(const Engine& engine, const Session& session) {
   uint64_t b = session.memory_bytes();
   const Scenario& s = session.scenario();
   if (bundled(engine, s)) return b;
-  // A client-sent scenario: its parsed form, its map encoding and its event map are this session's alone.
+  // A client-sent scenario: its parsed form, its map encoding and its event map are this session's alone (an
+  // encoding shared by sessions on the same map is counted by each: the count errs on the safe side).
   if (session.event_map()) b += session.event_map()->bytes();
-  b += sizeof(Scenario) + s.timestamps.capacity() * sizeof(double) + s.signals.capacity() * 64;
-  for (const Track& t : s.tracks) b += sizeof(Track) + t.states.capacity() * sizeof(ObjectState);
-  for (const MapFeature& m : s.map_features) b += sizeof(MapFeature) + m.points.capacity() * sizeof(MapPoint);
-  return b + session.map().bytes();
+  return b + scenario_bytes(s) + session.map().bytes();
 }
 
 void engine_thread_init() { enable_flush_to_zero(); }

@@ -27,6 +27,8 @@ struct EngineOptions {
   size_t max_scenario_bytes = size_t{64} << 20;
   int max_scenario_tracks = 1024;
   int max_map_features = 20000;
+  int max_scenario_frames = 1000;   // timestamps, and states of a track (WOMD: 91; 20 s scenarios: 201)
+  int max_map_points = 1'000'000;   // points, lane boundaries and neighbours over all map features (WOMD: <20,000)
   int step_threads = 1;  // threads one session's step may use (ModelOptions::step_threads): a lone session's latency
   // How keys and values are stored: "fp16" or "fp32"; "": fp16 (ModelOptions::kv_precision).
   std::string kv_precision;

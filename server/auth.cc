@@ -1,20 +1,25 @@
 #include "server/auth.h"
 
 #include <openssl/sha.h>
+#include <sys/stat.h>
+
+#include <set>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "engine/io/file_io.h"
+#include "spdlog/spdlog.h"
 
 namespace ss::server {
-namespace {
 
-std::string sha256(const std::string& s) {
+std::string secret_digest(const std::string& s) {
   unsigned char d[SHA256_DIGEST_LENGTH];
   SHA256(reinterpret_cast<const unsigned char*>(s.data()), s.size(), d);
   return std::string(reinterpret_cast<const char*>(d), sizeof d);
 }
+
+namespace {
 
 bool token_char(char c) {
   return absl::ascii_isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.' || c == '_' || c == '~' ||
@@ -30,6 +35,11 @@ absl::StatusOr<std::unique_ptr<TokenAuth>> TokenAuth::load(const std::string& pa
   auto text = file_read_all(path);
   if (!text.ok())
     return absl::InvalidArgumentError(absl::StrCat("tokens file ", path, ": ", text.status().message()));
+  struct stat sb;
+  if (::stat(path.c_str(), &sb) == 0 && (sb.st_mode & 077) != 0)
+    spdlog::warn("tokens file {} is readable by other users (mode {:o}): chmod 600 it (or mount its Secret with "
+                 "defaultMode 0400)",
+                 path, sb.st_mode & 0777);
   return parse(path, *text);
 }
 
@@ -59,12 +69,15 @@ absl::StatusOr<std::unique_ptr<TokenAuth>> TokenAuth::parse(const std::string& p
     for (char c : tenant)
       if (!tenant_char(c))
         return bad(absl::StrCat("tenant '", tenant, "' has a character outside letters, digits and -_."));
-    const std::string digest = sha256(token);
+    const std::string digest = secret_digest(token);
     if (auto it = line_of.find(digest); it != line_of.end())
       return bad(absl::StrCat("the token of line ", it->second, " appears again (a token names one tenant)"));
     line_of[digest] = line_no;
     auth->tenants_[digest] = tenant;
   }
+  std::set<std::string> tenants;
+  for (const auto& [digest, tenant] : auth->tenants_) tenants.insert(tenant);
+  auth->tenant_count_ = static_cast<int>(tenants.size());
   if (auth->tenants_.empty())
     return absl::InvalidArgumentError(absl::StrCat("tokens file ", path, ": no tokens (", line_no,
                                                    " lines, all blank or comments)"));
@@ -72,12 +85,18 @@ absl::StatusOr<std::unique_ptr<TokenAuth>> TokenAuth::parse(const std::string& p
 }
 
 absl::StatusOr<std::string> TokenAuth::tenant_of_header(const std::string& authorization) const {
+  // RFC 6750 2.1: credentials = "Bearer" 1*SP b64token, the scheme case-insensitive (RFC 7235 2.1).
   constexpr absl::string_view kBearer = "bearer ";
-  if (authorization.size() < kBearer.size() ||
-      !absl::EqualsIgnoreCase(absl::string_view(authorization).substr(0, kBearer.size()), kBearer))
+  const absl::string_view h(authorization);
+  if (h.size() < kBearer.size() || !absl::EqualsIgnoreCase(h.substr(0, kBearer.size()), kBearer))
     return absl::UnauthenticatedError("the authorization metadata is not `Bearer <token>`");
-  const std::string token(absl::StripAsciiWhitespace(absl::string_view(authorization).substr(kBearer.size())));
-  auto it = tenants_.find(sha256(token));
+  const size_t start = h.find_first_not_of(' ', kBearer.size());
+  const std::string token(start == absl::string_view::npos ? absl::string_view() : h.substr(start));
+  for (char c : token)
+    if (!token_char(c))
+      return absl::UnauthenticatedError(
+          "the authorization metadata is not `Bearer <token>` (spaces, then the token and nothing else)");
+  auto it = tenants_.find(secret_digest(token));
   if (it == tenants_.end()) return absl::UnauthenticatedError("the bearer token is not one of this server's tokens");
   return it->second;
 }

@@ -17,14 +17,17 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
+#include "grpcpp/generic/async_generic_service.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "grpcpp/impl/server_builder_option.h"
 #include "server/allocator.h"
 #include "server/auth.h"
 #include "server/metrics.h"
 #include "server/session_manager.h"
 #include "server/session_store.h"
 #include "server/simulator_service.h"
+#include "server/snapshot.h"
 #include "server/tls.h"
 #include "spdlog/spdlog.h"
 #include "common/command_line.h"
@@ -42,11 +45,12 @@ ABSL_FLAG(std::string, scenario_dir, "",
           "Directory of WOMD TFRecord / GPUDrive JSON scenarios; empty: the bundled sample scenarios (data/ in "
           "share/scenestreamer beside an installed server's bin/, or in the source tree for a server in its build "
           "tree)");
-ABSL_FLAG(std::string, snapshot_dir, "", "Where sessions are saved on eviction and SIGTERM, and restored from on start");
+ABSL_FLAG(std::string, snapshot_dir, "",
+          "Where sessions are saved on eviction and SIGTERM, and restored from on start (made 0700; the server refuses "
+          "to start when it cannot write there). Empty: no snapshots, and no eviction");
 ABSL_FLAG(double, snapshot_interval_s, 30,
-          "With --snapshot_dir or --session_store: sessions that changed are saved this often, so a crash loses at "
-          "most this much "
-          "(0: saved only on eviction and SIGTERM)");
+          "With --snapshot_dir or --session_store: a session that changed is saved at least this often, busy or "
+          "idle, so a crash loses at most this much of it (0: saved only on eviction and SIGTERM)");
 ABSL_FLAG(std::string, session_store, "",
           "A shared session store, redis://HOST:PORT[/DB] (Debian's redis-server): snapshots go there instead of "
           "--snapshot_dir, under a lease per session naming its replica, and any replica pointed at it continues any "
@@ -60,7 +64,13 @@ ABSL_FLAG(int, lease_ms, 5000,
           "With --session_store: a session's lease lasts this long unless renewed (every quarter of it); a replica "
           "that dies holds its sessions this long at most");
 ABSL_FLAG(int, max_sessions, 256, "Cap on sessions in memory");
-ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state), MiB");
+ABSL_FLAG(int, max_cache_mb, 8192, "Cap on the bytes all sessions hold (KV caches, state, client-sent scenarios), MiB");
+ABSL_FLAG(int, tenant_max_sessions, 0,
+          "Cap on one tenant's sessions in memory; 0: --max_sessions divided evenly among the tenants of "
+          "--tokens_file (all of it without tokens)");
+ABSL_FLAG(int, tenant_max_cache_mb, 0,
+          "Cap on the bytes one tenant's sessions hold, MiB; 0: --max_cache_mb divided evenly among the tenants of "
+          "--tokens_file (all of it without tokens)");
 ABSL_FLAG(double, idle_timeout_s, 3600, "A session unused this long is closed");
 ABSL_FLAG(double, evict_idle_s, 30, "A session unused this long may be evicted (least recently used first) for room");
 ABSL_FLAG(int, threads, 0, "Compute threads (engine calls running at once); 0: the number of cores");
@@ -78,6 +88,9 @@ ABSL_FLAG(double, call_deadline_s, 120, "Deadline of a call whose client set non
 ABSL_FLAG(int, max_message_mb, 64, "Largest request or response, MiB (also the largest client-sent scenario)");
 ABSL_FLAG(int, max_scenario_tracks, 1024, "Largest number of tracks in a scenario");
 ABSL_FLAG(int, max_map_features, 20000, "Largest number of map features in a scenario");
+ABSL_FLAG(int, max_scenario_frames, 1000, "Largest number of frames (timestamps, states of a track) in a scenario");
+ABSL_FLAG(int, max_map_points, 1000000,
+          "Largest number of map points (polylines, polygons, lane boundaries and neighbours) in a scenario");
 ABSL_FLAG(int, metrics_port, 9464, "Prometheus text metrics on METRICS_HOST:PORT (-1: off, 0: a free port)");
 ABSL_FLAG(std::string, metrics_host, "127.0.0.1",
           "Address of the metrics port (containers set 0.0.0.0 so the cluster's Prometheus can scrape it)");
@@ -93,8 +106,8 @@ ABSL_FLAG(std::string, tokens_file, "",
           "Bearer-token authentication: a file of `TOKEN TENANT` lines (README, Server); every call then needs "
           "`authorization: Bearer TOKEN`, and a tenant sees only its own sessions. Empty: no authentication");
 ABSL_FLAG(int, health_port, -1,
-          "Also serve grpc.health.v1.Health alone, plaintext and without tokens, on --health_host:PORT (for probes "
-          "that cannot do TLS, like Kubernetes' gRPC probes; -1: off, 0: a free port)");
+          "Also serve grpc.health.v1.Health alone (no reflection, no Simulator), plaintext and without tokens, on "
+          "--health_host:PORT (for probes that cannot do TLS, like Kubernetes' gRPC probes; -1: off, 0: a free port)");
 // The RSS that rose round by round under identical load (README, Faults; server/allocator.h).
 ABSL_FLAG(double, malloc_trim_s, 10,
           "After sessions close, give the pages jemalloc holds unused back to the kernel (an arena purge) at most "
@@ -136,6 +149,17 @@ absl::StatusOr<std::string> default_scenario_dir() {
   return absl::NotFoundError(absl::StrCat("no --scenario_dir given, and the bundled scenarios' folder ", dir.string(),
                                           " holds no WOMD TFRecord or JSON scenario"));
 }
+
+// Takes the reflection plugin off a ServerBuilder: the health port serves health alone. Reflection (the API's schema)
+// is the main port's, behind its TLS and tokens; its plugin registers itself for every builder when the library
+// loads, so it is removed here rather than left out.
+class WithoutReflection : public grpc::ServerBuilderOption {
+ public:
+  void UpdateArguments(grpc::ChannelArguments*) override {}
+  void UpdatePlugins(std::vector<std::unique_ptr<grpc::ServerBuilderPlugin>>* plugins) override {
+    std::erase_if(*plugins, [](const auto& p) { return p->name() == "proto_server_reflection"; });
+  }
+};
 
 }  // namespace
 
@@ -189,6 +213,8 @@ int main(int argc, char** argv) {
   eo.max_scenario_bytes = static_cast<size_t>(max_message);
   eo.max_scenario_tracks = absl::GetFlag(FLAGS_max_scenario_tracks);
   eo.max_map_features = absl::GetFlag(FLAGS_max_map_features);
+  eo.max_scenario_frames = absl::GetFlag(FLAGS_max_scenario_frames);
+  eo.max_map_points = absl::GetFlag(FLAGS_max_map_points);
   eo.step_threads = absl::GetFlag(FLAGS_step_threads);
   eo.kv_precision = absl::GetFlag(FLAGS_kv_precision);
   eo.matmul_precision = absl::GetFlag(FLAGS_matmul_precision);
@@ -251,6 +277,17 @@ int main(int argc, char** argv) {
     return 1;
   }
 
+  std::unique_ptr<ss::server::TokenAuth> auth;
+  if (!absl::GetFlag(FLAGS_tokens_file).empty()) {
+    auto loaded = ss::server::TokenAuth::load(absl::GetFlag(FLAGS_tokens_file));
+    if (!loaded.ok()) {
+      spdlog::critical("cannot start: {}", std::string(loaded.status().message()));
+      return 1;
+    }
+    auth = std::move(*loaded);
+    spdlog::info("bearer-token authentication: {} tokens from {}", auth->size(), absl::GetFlag(FLAGS_tokens_file));
+  }
+
   ss::server::Metrics metrics;
   ss::server::ManagerOptions mo;
   mo.session_store = store.get();
@@ -258,12 +295,29 @@ int main(int argc, char** argv) {
   mo.snapshot_interval_s = absl::GetFlag(FLAGS_snapshot_interval_s);
   mo.max_sessions = absl::GetFlag(FLAGS_max_sessions);
   mo.max_cache_bytes = static_cast<uint64_t>(absl::GetFlag(FLAGS_max_cache_mb)) << 20;
+  // An even share by default: the shares then add up to the caps, so no tenant ever finds the server full of others'
+  // sessions, and none is evicted to make room for another tenant.
+  const int tenants = auth ? std::max(1, auth->tenants()) : 1;
+  mo.tenant_max_sessions = absl::GetFlag(FLAGS_tenant_max_sessions) > 0 ? absl::GetFlag(FLAGS_tenant_max_sessions)
+                                                                         : std::max(1, mo.max_sessions / tenants);
+  mo.tenant_max_cache_bytes = absl::GetFlag(FLAGS_tenant_max_cache_mb) > 0
+                                  ? static_cast<uint64_t>(absl::GetFlag(FLAGS_tenant_max_cache_mb)) << 20
+                                  : mo.max_cache_bytes / tenants;
+  if (auth)
+    spdlog::info("{} tenants, each with at most {} sessions and {} MiB", tenants, mo.tenant_max_sessions,
+                 mo.tenant_max_cache_bytes >> 20);
   mo.idle_timeout_s = absl::GetFlag(FLAGS_idle_timeout_s);
   mo.evict_idle_s = absl::GetFlag(FLAGS_evict_idle_s);
   mo.compute_threads = compute_threads;
   mo.default_tick_deadline_ms = absl::GetFlag(FLAGS_tick_deadline_ms);
   mo.max_watchers = absl::GetFlag(FLAGS_max_watchers);
   mo.malloc_trim_interval_s = absl::GetFlag(FLAGS_malloc_trim_s);
+  if (!mo.snapshot_dir.empty()) {
+    if (auto st = ss::server::prepare_snapshot_dir(mo.snapshot_dir); !st.ok()) {
+      spdlog::critical("cannot start: {}", std::string(st.message()));
+      return 1;
+    }
+  }
   ss::server::SessionManager sessions(**engine, mo, metrics);
   metrics.sessions = [&] { return sessions.count(); };
   metrics.cache_bytes = [&] { return sessions.total_bytes(); };
@@ -289,16 +343,6 @@ int main(int argc, char** argv) {
     spdlog::critical("cannot start: {}", std::string(credentials.status().message()));
     return 1;
   }
-  std::unique_ptr<ss::server::TokenAuth> auth;
-  if (!absl::GetFlag(FLAGS_tokens_file).empty()) {
-    auto loaded = ss::server::TokenAuth::load(absl::GetFlag(FLAGS_tokens_file));
-    if (!loaded.ok()) {
-      spdlog::critical("cannot start: {}", std::string(loaded.status().message()));
-      return 1;
-    }
-    auth = std::move(*loaded);
-    spdlog::info("bearer-token authentication: {} tokens from {}", auth->size(), absl::GetFlag(FLAGS_tokens_file));
-  }
 
   ss::server::SimulatorService service(**engine, sessions, metrics, absl::GetFlag(FLAGS_call_deadline_s), auth.get());
   grpc::EnableDefaultHealthCheckService(true);
@@ -317,8 +361,13 @@ int main(int argc, char** argv) {
   }
   // The health-only server: its own port, no TLS, no tokens; the same status as the main port's health service.
   std::unique_ptr<grpc::Server> health_server;
+  // Every other method on the health port: UNIMPLEMENTED (gRPC's default generic service). It also gives the port's
+  // server the polled completion queue gRPC needs before the health service is added at start.
+  grpc::CallbackGenericService health_port_rest;
   if (absl::GetFlag(FLAGS_health_port) >= 0) {
     grpc::ServerBuilder hb;
+    hb.SetOption(std::make_unique<WithoutReflection>());
+    hb.RegisterCallbackGenericService(&health_port_rest);
     int health_port = 0;
     const std::string health_address =
         absl::GetFlag(FLAGS_health_host) + ":" + std::to_string(absl::GetFlag(FLAGS_health_port));

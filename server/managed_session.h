@@ -22,10 +22,14 @@ namespace ss::server {
 class SessionStore;  // server/session_store.h
 
 struct ManagerOptions {
-  std::string snapshot_dir;          // empty: no snapshots (eviction then drops the session)
-  double snapshot_interval_s = 30;   // changed sessions are saved this often (0: only on eviction and SIGTERM)
+  std::string snapshot_dir;          // empty: no snapshots, and no eviction (nowhere to keep an evicted session)
+  double snapshot_interval_s = 30;   // a changed session is saved at least this often, busy or idle (0: only on
+                                     // eviction and SIGTERM)
   int max_sessions = 256;
   uint64_t max_cache_bytes = uint64_t{8} << 30;
+  // One tenant's share of the caps (server/auth.h: a tenant is a token's owner); 0: the whole cap.
+  int tenant_max_sessions = 0;
+  uint64_t tenant_max_cache_bytes = 0;
   double idle_timeout_s = 3600;      // a session unused this long is closed
   double evict_idle_s = 30;          // a session unused this long may be evicted (LRU) to make room
   int compute_threads = 2;           // engine calls running at once
@@ -69,6 +73,7 @@ struct ManagedSession {
   uint64_t max_tick_growth = 0;                  // the most one tick has added to `bytes` (under engine_mu)
   std::atomic<uint64_t> changes{1};              // counts ticks, injections and forces (1: never saved)
   uint64_t saved_changes = 0;                    // `changes` when the snapshot was last written (under engine_mu)
+  TimePoint saved_at;                            // when it was last written, or created (under engine_mu)
   std::atomic<int64_t> last_used{0};             // the clock's time since its epoch, nanoseconds
   std::atomic<int> calls{0};                     // calls in progress: waiting (a slot, other controllers) or running
 
@@ -77,7 +82,7 @@ struct ManagedSession {
   int64_t tick = 0;
   StepResult view;                               // the current tick as GetSession shows it (no events)
   std::set<int64_t> controllers;                 // controlled agents alive: each may have its own client
-  std::map<int64_t, std::string> controller_of;  // agent -> its controller's credential (JoinSession)
+  std::map<int64_t, std::string> controller_of;  // agent -> its controller's credential's SHA-256 (JoinSession)
   BarrierState barrier;
   std::deque<TickView> recent;                   // the last ticks, for waiting controllers
   SessionWatchers watchers;                      // WatchSession streams

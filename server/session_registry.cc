@@ -61,18 +61,13 @@ int SessionRegistry::count() {
   return static_cast<int>(sessions_.size());
 }
 
-uint64_t SessionRegistry::held_bytes_locked() const {
-  uint64_t b = 0;
-  for (const auto& [id, s] : sessions_) b += s->bytes;
-  return b;
-}
-
 uint64_t SessionRegistry::total_bytes() {
   std::lock_guard<std::mutex> l(mu_);
-  return held_bytes_locked();
+  return held_locked(nullptr).bytes;
 }
 
-absl::StatusOr<std::string> SessionRegistry::reserve_id(const std::string& proposed, uint64_t bytes) {
+absl::StatusOr<std::string> SessionRegistry::reserve_id(const std::string& tenant, const std::string& proposed,
+                                                        uint64_t bytes) {
   std::lock_guard<std::mutex> l(mu_);
   std::string id;
   if (proposed.empty()) {
@@ -83,7 +78,7 @@ absl::StatusOr<std::string> SessionRegistry::reserve_id(const std::string& propo
       return absl::AlreadyExistsError(absl::StrCat("session_id ", echo_id(proposed), " is already in use"));
     id = proposed;
   }
-  if (auto st = make_room_locked(bytes); !st.ok()) return st;
+  if (auto st = make_room_locked(tenant, bytes); !st.ok()) return st;
   return id;
 }
 
@@ -97,7 +92,7 @@ absl::Status SessionRegistry::insert(const std::shared_ptr<ManagedSession>& s, b
   else if (sessions_.count(s->id))
     st = absl::AlreadyExistsError(absl::StrCat("session_id ", echo_id(s->id), " is already in use"));
   else
-    st = make_room_locked(s->bytes);
+    st = make_room_locked(s->tenant, s->bytes);
   if (!st.ok()) {
     if (leases_) (void)leases_->remove(s->id);  // [session store] not listed after all
     return st;
@@ -125,8 +120,38 @@ absl::Status SessionRegistry::save(ManagedSession& s, bool release) {
   const Snapshot snap = snapshot_of(s);
   absl::Status st = leases_ ? leases_->put(s.id, encode_snapshot(snap), release)  // [session store]
                             : write_snapshot(options_.snapshot_dir, snap);
-  if (st.ok()) s.saved_changes = changes;
+  if (st.ok()) {
+    s.saved_changes = changes;
+    s.saved_at = clock_.now();
+  }
   return st;
+}
+
+bool SessionRegistry::save_kept(ManagedSession& s, const char* what) {
+  if (auto st = save(s); !st.ok()) {
+    spdlog::warn("session {}: {} failed: {}", s.id, what, std::string(st.message()));
+    return false;
+  }
+  bool closed;
+  {
+    std::lock_guard<std::mutex> l(s.mu);
+    closed = s.closed;
+  }
+  // A CloseSession that ran while the file was written removed it before the write renamed it into place. (The
+  // session store refuses a put after a close: the close removed the lease's epoch.)
+  if (closed && !leases_ && !evicted_contains(s.id)) remove_snapshot(options_.snapshot_dir, s.id);
+  return true;
+}
+
+void SessionRegistry::save_if_due(ManagedSession& s) {
+  if ((options_.snapshot_dir.empty() && !leases_) || options_.snapshot_interval_s <= 0 || draining_) return;
+  if (s.changes == s.saved_changes ||
+      clock_.now() - s.saved_at < std::chrono::duration<double>(options_.snapshot_interval_s))
+    return;
+  const auto t0 = std::chrono::steady_clock::now();  // the save's cost to this call, in wall time whatever the clock
+  if (save_kept(s, "snapshot at a tick boundary"))
+    spdlog::debug("session {}: saved at tick boundary in {:.2f} ms", s.id,
+                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 
 absl::Status SessionRegistry::evict_locked(const std::shared_ptr<ManagedSession>& s) {
@@ -146,20 +171,41 @@ absl::Status SessionRegistry::evict_locked(const std::shared_ptr<ManagedSession>
   sessions_.erase(s->id);
   ++closed_since_trim_;
   metrics_.count_eviction();
-  spdlog::info("session {}: evicted after {:.1f} s idle{}", s->id, s->idle_seconds(),
-               options_.snapshot_dir.empty() ? " (no snapshot directory: dropped)" : ", snapshot saved");
+  spdlog::info("session {}: evicted after {:.1f} s idle, snapshot saved", s->id, s->idle_seconds());
   return absl::OkStatus();
 }
 
-absl::Status SessionRegistry::make_room_locked(uint64_t extra_bytes, int extra_sessions, const ManagedSession* keep) {
-  auto over = [&] {
-    return static_cast<int>(sessions_.size()) + extra_sessions > options_.max_sessions ||
-           held_bytes_locked() + extra_bytes > options_.max_cache_bytes;
-  };
-  while (over()) {
+SessionRegistry::Held SessionRegistry::held_locked(const std::string* tenant) const {
+  Held h;
+  for (const auto& [id, s] : sessions_)
+    if (tenant == nullptr || s->tenant == *tenant) {
+      ++h.sessions;
+      h.bytes += s->bytes;
+    }
+  return h;
+}
+
+absl::Status SessionRegistry::make_room_locked(const std::string& tenant, uint64_t extra_bytes, int extra_sessions,
+                                               const ManagedSession* keep) {
+  const int share_sessions = options_.tenant_max_sessions > 0 ? options_.tenant_max_sessions : options_.max_sessions;
+  const uint64_t share_bytes =
+      options_.tenant_max_cache_bytes > 0 ? options_.tenant_max_cache_bytes : options_.max_cache_bytes;
+  while (true) {
+    const Held mine = held_locked(&tenant), all = held_locked(nullptr);
+    // Over the caller's own share (where it is smaller than the cap), only its own idle sessions may make room.
+    const bool own_only =
+        (share_sessions < options_.max_sessions && mine.sessions + extra_sessions > share_sessions) ||
+        (share_bytes < options_.max_cache_bytes && mine.bytes + extra_bytes > share_bytes);
+    if (!own_only && all.sessions + extra_sessions <= options_.max_sessions &&
+        all.bytes + extra_bytes <= options_.max_cache_bytes)
+      return absl::OkStatus();
+    // Without a snapshot directory (or the session store) an evicted session would be lost: nothing is evicted.
     std::vector<std::shared_ptr<ManagedSession>> idle;
-    for (const auto& [id, s] : sessions_)
-      if (s.get() != keep && s->calls == 0 && s->idle_seconds() >= options_.evict_idle_s) idle.push_back(s);
+    if (!options_.snapshot_dir.empty() || leases_)
+      for (const auto& [id, s] : sessions_)
+        if (s.get() != keep && (!own_only || s->tenant == tenant) && s->calls == 0 &&
+            s->idle_seconds() >= options_.evict_idle_s)
+          idle.push_back(s);
     std::sort(idle.begin(), idle.end(), [](const auto& a, const auto& b) { return a->last_used < b->last_used; });
     bool evicted = false;
     for (const auto& s : idle)
@@ -167,20 +213,26 @@ absl::Status SessionRegistry::make_room_locked(uint64_t extra_bytes, int extra_s
         evicted = true;
         break;
       }
-    if (!evicted)
-      return absl::ResourceExhaustedError(absl::StrCat(
-          std::to_string(sessions_.size()), " sessions holding ", std::to_string(held_bytes_locked()), " bytes, ",
-          std::to_string(extra_bytes), " more bytes needed: the caps are --max_sessions=",
-          std::to_string(options_.max_sessions), " and --max_cache_mb=", std::to_string(options_.max_cache_bytes >> 20),
-          ", and no other session has been idle for --evict_idle_s=", std::to_string(options_.evict_idle_s),
-          " s to be evicted"));
+    if (evicted) continue;
+    // The message gives the caller's own figures and the flags' values: nothing of other tenants' sessions.
+    return absl::ResourceExhaustedError(absl::StrCat(
+        own_only ? absl::StrCat("your share of the server is full (--tenant_max_sessions=",
+                                std::to_string(share_sessions), ", --tenant_max_cache_mb=",
+                                std::to_string(share_bytes >> 20), ")")
+                 : absl::StrCat("the server is full (--max_sessions=", std::to_string(options_.max_sessions),
+                                ", --max_cache_mb=", std::to_string(options_.max_cache_bytes >> 20), ")"),
+        options_.snapshot_dir.empty() && !leases_
+            ? std::string(" and, without --snapshot_dir, evicts no session to make room")
+            : absl::StrCat(" and no session has been idle for --evict_idle_s=", std::to_string(options_.evict_idle_s),
+                           " s to be evicted"),
+        "; your sessions here: ", std::to_string(mine.sessions), " holding ", std::to_string(mine.bytes >> 20),
+        " MiB, ", std::to_string(extra_bytes >> 20), " MiB more needed. Close one of yours or retry later"));
   }
-  return absl::OkStatus();
 }
 
 absl::Status SessionRegistry::room_to_grow(ManagedSession& s) {
   std::lock_guard<std::mutex> l(mu_);
-  absl::Status st = make_room_locked(s.max_tick_growth, 0, &s);
+  absl::Status st = make_room_locked(s.tenant, s.max_tick_growth, 0, &s);
   if (st.ok()) return st;
   return absl::ResourceExhaustedError(absl::StrCat(
       "session '", s.id, "' (", std::to_string(s.bytes.load()), " bytes, up to ", std::to_string(s.max_tick_growth),
@@ -204,7 +256,14 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionRegistry::find(const std:
   }
   // Evicted earlier: bring it back from its snapshot.
   auto snap = read_snapshot(options_.snapshot_dir, id);
-  if (!snap.ok()) return snap.status();
+  if (!snap.ok()) {
+    if (snap.status().code() == absl::StatusCode::kDataLoss) {
+      std::lock_guard<std::mutex> l(mu_);
+      evicted_.erase(id);
+    }
+    quarantine_if_corrupt(id, snap.status());
+    return snap.status();
+  }
   auto s = restore_from(std::move(*snap), deadline);
   if (!s.ok()) return s.status();
   std::lock_guard<std::mutex> l(mu_);
@@ -217,7 +276,7 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionRegistry::find(const std:
   // A CloseSession while the snapshot was being read won: the session stays closed.
   if (!evicted_.count(id))
     return absl::NotFoundError(absl::StrCat("session_id ", echo_id(id), " was closed while it was being restored"));
-  if (auto st = make_room_locked((*s)->bytes); !st.ok()) return st;
+  if (auto st = make_room_locked(tenant, (*s)->bytes); !st.ok()) return st;
   evicted_.erase(id);
   sessions_[id] = *s;
   // The snapshot stays until the session closes: a crash before the next save still finds it.
@@ -242,6 +301,7 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionRegistry::restore_from(Sn
   if (!st.ok()) return absl::Status(st.code(), absl::StrCat("snapshot ", path, ": ", std::string(st.message())));
   s->touch();
   s->saved_changes = s->changes;  // its snapshot is on disk already
+  s->saved_at = clock_.now();
   std::lock_guard<std::mutex> l(s->mu);
   s->tick = session_tick_index(*s->session);
   s->controller_of.insert(snap.controllers.begin(), snap.controllers.end());
@@ -331,6 +391,7 @@ int SessionRegistry::restore_all() {
     auto snap = read_snapshot(options_.snapshot_dir, id);
     if (!snap.ok()) {
       spdlog::error("session {}: not restored: {}", id, std::string(snap.status().message()));
+      quarantine_if_corrupt(id, snap.status());
       continue;
     }
     const std::string tenant = snap->tenant;
@@ -351,7 +412,7 @@ int SessionRegistry::restore_all() {
     }
     {
       std::lock_guard<std::mutex> l(mu_);
-      if (held_bytes_locked() + (*s)->bytes > options_.max_cache_bytes) {
+      if (held_locked(nullptr).bytes + (*s)->bytes > options_.max_cache_bytes) {
         evicted_[id] = tenant;
         spdlog::info("session {}: left evicted ({} bytes would pass --max_cache_mb={}); restored on its next call",
                      id, (*s)->bytes.load(), options_.max_cache_bytes >> 20);
@@ -374,24 +435,29 @@ void SessionRegistry::save_changed() {
   int saved = 0;
   for (const auto& s : all) {
     if (stopping_ || draining_) return;
-    // A session busy in an engine call is saved at the next interval.
+    // A session busy in an engine call is saved by that call at its next tick boundary (save_if_due).
     std::unique_lock<std::timed_mutex> e(s->engine_mu, std::try_to_lock);
     if (!e.owns_lock() || s->changes == s->saved_changes) continue;
-    absl::Status st = compute_(clock_.now() + std::chrono::seconds(10), [&] { return save(*s); });
-    if (!st.ok()) {
-      spdlog::warn("session {}: background snapshot failed: {}", s->id, std::string(st.message()));
-      continue;
-    }
-    ++saved;
-    bool closed;
-    {
-      std::lock_guard<std::mutex> l(s->mu);
-      closed = s->closed;
-    }
-    // [session store] a put after a close is refused there (the close removed the lease's epoch)
-    if (closed && !leases_ && !evicted_contains(s->id)) remove_snapshot(options_.snapshot_dir, s->id);
+    bool ok = false;
+    absl::Status st = compute_(clock_.now() + std::chrono::seconds(10), [&] {
+      ok = save_kept(*s, "background snapshot");
+      return absl::OkStatus();
+    });
+    if (!st.ok()) spdlog::warn("session {}: background snapshot not run: {}", s->id, std::string(st.message()));
+    saved += ok;
   }
   if (saved) spdlog::debug("background snapshots: {} sessions saved", saved);
+}
+
+void SessionRegistry::quarantine_if_corrupt(const std::string& id, const absl::Status& read) {
+  // A cut or corrupt file is never read again; one of another format version stays for the server that reads it.
+  if (read.code() != absl::StatusCode::kDataLoss) return;
+  auto to = quarantine_snapshot(options_.snapshot_dir, id);
+  if (to.ok())
+    spdlog::warn("session {}: its corrupt snapshot moved to quarantine: {}", id, *to);
+  else
+    spdlog::error("session {}: its corrupt snapshot could not be moved to quarantine: {}", id,
+                  std::string(to.status().message()));
 }
 
 bool SessionRegistry::evicted_contains(const std::string& id) {

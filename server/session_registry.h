@@ -36,10 +36,10 @@ class SessionRegistry {
   // Stops the reaper.
   ~SessionRegistry();
 
-  // A free id (`proposed`, or a random one for ""), with room under the caps for one more session of `bytes`
-  // (evicting idle sessions if needed). INVALID_ARGUMENT for an id that breaks the rule, ALREADY_EXISTS for one in
-  // use, RESOURCE_EXHAUSTED when nothing can be evicted.
-  absl::StatusOr<std::string> reserve_id(const std::string& proposed, uint64_t bytes);
+  // A free id (`proposed`, or a random one for ""), with room under the caps and `tenant`'s share for one more
+  // session of `bytes` (evicting idle sessions if needed). INVALID_ARGUMENT for an id that breaks the rule,
+  // ALREADY_EXISTS for one in use, RESOURCE_EXHAUSTED when nothing can be evicted.
+  absl::StatusOr<std::string> reserve_id(const std::string& tenant, const std::string& proposed, uint64_t bytes);
   // Lists `s` under its id, again with room under the caps (others may have filled it meanwhile). With
   // `refuse_when_draining`, UNAVAILABLE once the server drains.
   absl::Status insert(const std::shared_ptr<ManagedSession>& s, bool refuse_when_draining);
@@ -63,23 +63,40 @@ class SessionRegistry {
   // Restores every snapshot of the snapshot directory; returns how many.
   int restore_all();
 
+  // Saves `s` when it changed and its snapshot is --snapshot_interval_s old: called by the thread stepping it, holding
+  // its engine_mu, at a tick boundary (the reaper cannot take a session stepped back to back).
+  void save_if_due(ManagedSession& s);
+
   // One pass of the reaper: the allocator purge, the background snapshots, closing idle sessions, each when due.
   void reap();
   void start_reaper();
 
  private:
   // Evicts idle sessions other than `keep` (LRU) until `extra_sessions` more sessions and `extra_bytes` more bytes
-  // fit under the caps; RESOURCE_EXHAUSTED when they cannot. Holds mu_.
-  absl::Status make_room_locked(uint64_t extra_bytes, int extra_sessions = 1, const ManagedSession* keep = nullptr);
+  // of `tenant` fit under the caps and its share (over its share, only its own sessions go); RESOURCE_EXHAUSTED,
+  // naming only the caller's figures, when they cannot. Without a snapshot directory nothing is evicted: an evicted
+  // session would be lost. Holds mu_.
+  absl::Status make_room_locked(const std::string& tenant, uint64_t extra_bytes, int extra_sessions = 1,
+                                const ManagedSession* keep = nullptr);
   absl::Status evict_locked(const std::shared_ptr<ManagedSession>& s);
   // Saves `s` to the snapshot directory or the session store (with `release`, giving up its lease there).
   absl::Status save(ManagedSession& s, bool release = false);
   Snapshot snapshot_of(ManagedSession& s);
+  // save(), logging a failure as `what`, then removing the file again if the session was closed meanwhile. Holds
+  // s.engine_mu.
+  bool save_kept(ManagedSession& s, const char* what);
   absl::StatusOr<std::shared_ptr<ManagedSession>> restore_from(Snapshot snap, TimePoint deadline);
   // Saves every session that changed since its last snapshot (the background snapshots).
   void save_changed();
   bool evicted_contains(const std::string& id);
-  uint64_t held_bytes_locked() const;
+  // Moves the snapshot of `id` to the quarantine when `read` (read_snapshot's answer) says it is corrupt.
+  void quarantine_if_corrupt(const std::string& id, const absl::Status& read);
+  struct Held {
+    int sessions = 0;
+    uint64_t bytes = 0;
+  };
+  // What the sessions of `tenant` (null: of every tenant) hold. Holds mu_.
+  Held held_locked(const std::string* tenant) const;
 
   // --- The shared session store (server/session_registry_store.cc; only with ManagerOptions::session_store) ---
   // find() and close() for sessions that may be held by another replica, or by none since one died.

@@ -66,7 +66,7 @@ absl::StatusOr<std::shared_ptr<ManagedSession>> SessionRegistry::find_in_store(c
   std::lock_guard<std::mutex> l(mu_);
   auto it = sessions_.find(id);
   if (it != sessions_.end()) return it->second;  // another call restored it first (the same snapshot)
-  if (auto st = make_room_locked((*r)->bytes); !st.ok()) {
+  if (auto st = make_room_locked((*r)->tenant, (*r)->bytes); !st.ok()) {
     leases_->release(id);
     return st;
   }

@@ -1,11 +1,16 @@
 #include "server/snapshot.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <filesystem>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "engine/io/file_io.h"
+#include "server/auth.h"
 #include "server/session_id.h"
+#include "spdlog/spdlog.h"
 #include "state/snapshot.pb.h"
 
 namespace ss::server {
@@ -18,6 +23,20 @@ namespace {
 // layout before it (the magic, the message, an FNV-1a hash of both) are still read.
 constexpr RecordFormat kFormat{"SSSNAP05", 2, "snapshot", "server", RecordFormat::Earlier::message_then_hash};
 constexpr char kSuffix[] = ".snapshot";
+constexpr char kQuarantine[] = "quarantine";
+namespace fs = std::filesystem;
+
+// The directory, made 0700 (only the server's user may list it) when it is missing.
+absl::Status make_dir(const std::string& dir) {
+  std::error_code ec;
+  if (fs::is_directory(dir, ec)) return absl::OkStatus();
+  if (fs::exists(dir, ec)) return absl::FailedPreconditionError(absl::StrCat(dir, " exists and is not a directory"));
+  fs::create_directories(dir, ec);
+  if (ec) return absl::InternalError(absl::StrCat(dir, " cannot be created: ", ec.message()));
+  fs::permissions(dir, fs::perms::owner_all, fs::perm_options::replace, ec);
+  if (ec) return absl::InternalError(absl::StrCat(dir, ": cannot set its mode to 0700: ", ec.message()));
+  return absl::OkStatus();
+}
 
 }  // namespace
 
@@ -34,13 +53,37 @@ std::string encode_snapshot(const Snapshot& s) {
   for (const auto& [agent, credential] : s.controllers) {
     state::Controller* c = m.add_controllers();
     c->set_agent_id(agent);
-    c->set_credential(credential);
+    c->set_credential_sha256(credential);
   }
   m.set_scenario_name(s.source.scenario_name);
   m.set_womd_bytes(s.source.womd_bytes);
   m.set_tick_deadline_ms(s.tick_deadline_ms);
   m.set_session_state(s.session_bytes);
   return record_write(kFormat, m.SerializeAsString());
+}
+
+absl::Status prepare_snapshot_dir(const std::string& dir) {
+  const std::string flag = absl::StrCat("--snapshot_dir ", dir);
+  if (auto st = make_dir(dir); !st.ok()) return absl::Status(st.code(), absl::StrCat(flag, ": ", st.message()));
+  const std::string probe = (fs::path(dir) / ".write-probe").string();
+  if (auto st = file_write_atomically(probe, "probe", 0600); !st.ok())
+    return absl::Status(st.code(), absl::StrCat(flag, " cannot be written: ", st.message()));
+  std::error_code ec;
+  fs::remove(probe, ec);
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (absl::StrContains(name, absl::StrCat(kSuffix, ".tmp."))) {  // file_write_atomically's temporary files
+      std::error_code rm;
+      fs::remove(e.path(), rm);
+      spdlog::info("snapshot directory: removed {}, left mid-write by a crash{}", name,
+                   rm ? absl::StrCat(" (failed: ", rm.message(), ")") : "");
+    }
+  }
+  struct stat sb;
+  if (::stat(dir.c_str(), &sb) == 0 && (sb.st_mode & 077) != 0)
+    spdlog::warn("{} may be listed by other users (mode {:o}): chmod 700 it (the files in it are 0600)", flag,
+                 sb.st_mode & 0777);
+  return absl::OkStatus();
 }
 
 absl::StatusOr<Snapshot> decode_snapshot(const std::string& bytes, const std::string& session_id,
@@ -67,7 +110,10 @@ absl::StatusOr<Snapshot> decode_snapshot(const std::string& bytes, const std::st
   Snapshot s;
   s.session_id = m.session_id();
   s.tenant = m.tenant();
-  for (const state::Controller& c : m.controllers()) s.controllers.emplace_back(c.agent_id(), c.credential());
+  // Servers before credential_sha256 wrote the credential itself: it is kept as its digest from here on.
+  for (const state::Controller& c : m.controllers())
+    s.controllers.emplace_back(c.agent_id(),
+                               c.credential_sha256().empty() ? secret_digest(c.credential()) : c.credential_sha256());
   s.source.scenario_name = m.scenario_name();
   s.source.womd_bytes = m.womd_bytes();
   s.tick_deadline_ms = m.tick_deadline_ms();
@@ -80,10 +126,8 @@ absl::Status write_snapshot(const std::string& dir, const Snapshot& s) {
   auto path = snapshot_path(dir, s.session_id);
   if (!path.ok()) return path.status();
   const std::string out = encode_snapshot(s);
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) return absl::InternalError(absl::StrCat("snapshot directory ", dir, " cannot be created: ", ec.message()));
-  return file_write_atomically(*path, out);
+  if (auto st = make_dir(dir); !st.ok()) return absl::Status(st.code(), absl::StrCat("snapshot directory ", st.message()));
+  return file_write_atomically(*path, out, 0600);
 }
 
 absl::StatusOr<Snapshot> read_snapshot(const std::string& dir, const std::string& session_id) {
@@ -108,6 +152,18 @@ void remove_snapshot(const std::string& dir, const std::string& session_id) {
   if (!path.ok()) return;
   std::error_code ec;
   std::filesystem::remove(*path, ec);
+}
+
+absl::StatusOr<std::string> quarantine_snapshot(const std::string& dir, const std::string& session_id) {
+  auto path = snapshot_path(dir, session_id);
+  if (!path.ok()) return path.status();
+  const std::string qdir = (fs::path(dir) / kQuarantine).string();
+  if (auto st = make_dir(qdir); !st.ok()) return st;
+  const std::string to = (fs::path(qdir) / fs::path(*path).filename()).string();
+  std::error_code ec;
+  fs::rename(*path, to, ec);
+  if (ec) return absl::InternalError(absl::StrCat(*path, " cannot be moved to ", to, ": ", ec.message()));
+  return to;
 }
 
 }  // namespace ss::server

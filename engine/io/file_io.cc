@@ -49,13 +49,13 @@ absl::StatusOr<std::string> file_read_all(const std::string& path) {
 
 // The temporary file sits in the target's directory so that rename() is atomic (same filesystem). open() with O_EXCL
 // rather than mkstemp(): mkstemp makes the file 0600, and fixing that up would need the process umask.
-absl::Status file_write_atomically(const std::string& path, std::string_view bytes) {
+absl::Status file_write_atomically(const std::string& path, std::string_view bytes, int mode) {
   std::random_device rd;
   std::string tmp;
   int fd = -1;
   for (int attempt = 0; attempt < 8 && fd < 0; ++attempt) {
     tmp = absl::StrFormat("%s.tmp.%d.%08x", path, static_cast<int>(::getpid()), rd());
-    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(mode));
     if (fd < 0 && errno != EEXIST) break;
   }
   if (fd < 0) return errno_status(errno, absl::StrCat(path, ": cannot create a temporary file ", tmp));

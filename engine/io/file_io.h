@@ -21,7 +21,8 @@ absl::StatusOr<std::string> file_read_all(const std::string& path);
 // Writes `bytes` to a temporary file next to `path`, syncs it, renames it over `path` and syncs the directory: a
 // reader sees the old file or the new one, never half of one, a failed write leaves the old file as it was, and once
 // this returns OK the new file survives a crash. The temporary file is removed on failure. NOT_FOUND if the directory
-// does not exist.
-absl::Status file_write_atomically(const std::string& path, std::string_view bytes);
+// does not exist. `mode` is the new file's permissions (less the umask); 0600 keeps it to its owner from the first
+// byte on.
+absl::Status file_write_atomically(const std::string& path, std::string_view bytes, int mode = 0666);
 
 }  // namespace ss

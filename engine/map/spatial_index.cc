@@ -239,4 +239,9 @@ std::vector<int> SegmentIndex::nearest(Vec2 p, int k, bool sorted) const {
   return out;
 }
 
+size_t SegmentIndex::bytes() const {
+  return centres_.capacity() * sizeof(Vec2) + headings_.capacity() * sizeof(double) +
+         (cell_start_.capacity() + order_.capacity()) * sizeof(int);
+}
+
 }  // namespace ss

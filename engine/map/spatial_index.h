@@ -25,6 +25,7 @@ class SegmentIndex {
   std::vector<int> k_nearest_unordered(Vec2 p, int k) const;
 
   int size() const { return static_cast<int>(centres_.size()); }
+  size_t bytes() const;  // memory held: the centres, headings and the grid (one entry per cell of the map's box)
 
  private:
   std::vector<int> nearest(Vec2 p, int k, bool sorted) const;  // k_nearest, sorted or not

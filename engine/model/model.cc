@@ -148,7 +148,7 @@ size_t MapContext::bytes() const {
   for (const auto* halves : {&cross_keys_h, &cross_values_h})
     for (const std::vector<uint16_t>& h : *halves) b += h.size() * sizeof(uint16_t);
   for (const MapSegment& s : segments) b += sizeof(MapSegment) + s.points.capacity() * sizeof(MapPoint);
-  return b;
+  return b + sizeof(*this) + index.bytes() + anchors.capacity() * sizeof(Anchor);
 }
 
 namespace {

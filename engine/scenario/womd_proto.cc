@@ -1,5 +1,6 @@
 #include "engine/scenario/womd_proto.h"
 
+#include <algorithm>
 #include <bit>
 #include <climits>
 #include <cstdint>
@@ -322,12 +323,112 @@ void to_proto(const Scenario& s, wo::Scenario* p) {
 
 bool point_is_zero(const MapPoint& p) { return zero_bits(p.x) && zero_bits(p.y) && zero_bits(p.z); }
 
+// ---- limits, on the wire ----
+
+// Calls f(number, payload) for each length-delimited field of a message's wire bytes, skipping the others; false when
+// the bytes are malformed (check_wire then names the problem).
+template <class F>
+bool for_each_len_field(std::string_view b, F&& f) {
+  size_t pos = 0;
+  auto varint = [&](uint64_t* v) {
+    *v = 0;
+    for (int shift = 0; shift < 64 && pos < b.size(); shift += 7) {
+      const uint8_t c = static_cast<uint8_t>(b[pos++]);
+      *v |= static_cast<uint64_t>(c & 0x7F) << shift;
+      if (!(c & 0x80)) return true;
+    }
+    return false;
+  };
+  while (pos < b.size()) {
+    uint64_t tag, v;
+    if (!varint(&tag)) return false;
+    switch (tag & 7) {
+      case 0:
+        if (!varint(&v)) return false;
+        break;
+      case 1:
+        pos += 8;
+        break;
+      case 5:
+        pos += 4;
+        break;
+      case 2:
+        if (!varint(&v) || v > b.size() - pos) return false;
+        f(static_cast<int>(tag >> 3), b.substr(pos, v));
+        pos += v;
+        break;
+      default:
+        return false;  // groups: check_wire names them
+    }
+    if (pos > b.size()) return false;
+  }
+  return true;
+}
+
+int64_t count_len_fields(std::string_view b, int number) {
+  int64_t n = 0;
+  for_each_len_field(b, [&](int k, std::string_view) { n += k == number; });
+  return n;
+}
+
+absl::Status check_womd_limits(std::string_view bytes, const WomdLimits& limits, const std::string& where) {
+  int64_t tracks = 0, features = 0, frames = 0, dynamic = 0, predicted = 0, points = 0;
+  int64_t most_states = 0, most_lane_states = 0;
+  for_each_len_field(bytes, [&](int number, std::string_view payload) {
+    switch (number) {
+      case 1:  // timestamps_seconds, packed doubles (an unpacked one is not length-delimited and not counted)
+        frames += static_cast<int64_t>(payload.size() / 8);
+        break;
+      case 2:
+        ++tracks;
+        if (tracks <= limits.max_tracks) most_states = std::max(most_states, count_len_fields(payload, 3));
+        break;
+      case 7:
+        ++dynamic;
+        most_lane_states = std::max(most_lane_states, count_len_fields(payload, 1));
+        break;
+      case 8:
+        ++features;
+        // The feature's one member (lane, road line, ...), and what it holds: points, boundaries, neighbours (and a
+        // neighbour's boundaries).
+        for_each_len_field(payload, [&](int, std::string_view member) {
+          for_each_len_field(member, [&](int, std::string_view part) {
+            ++points;
+            points += count_len_fields(part, 5);  // LaneNeighbor.boundaries
+          });
+        });
+        break;
+      case 11:
+        ++predicted;
+        break;
+      default:
+        break;
+    }
+  });
+  auto over = [&](int64_t n, const char* what, int limit) {
+    return absl::ResourceExhaustedError(absl::StrCat(where, ": ", n, " ", what, ", above the limit of ", limit));
+  };
+  if (tracks > limits.max_tracks) return over(tracks, "tracks", limits.max_tracks);
+  if (predicted > limits.max_tracks) return over(predicted, "tracks_to_predict", limits.max_tracks);
+  if (features > limits.max_map_features) return over(features, "map features", limits.max_map_features);
+  if (most_lane_states > limits.max_map_features)
+    return over(most_lane_states, "lane states in one dynamic map state", limits.max_map_features);
+  if (frames > limits.max_frames) return over(frames, "frames (timestamps_seconds)", limits.max_frames);
+  if (most_states > limits.max_frames) return over(most_states, "states in one track", limits.max_frames);
+  if (dynamic > limits.max_frames) return over(dynamic, "dynamic map states", limits.max_frames);
+  if (points > limits.max_map_points)
+    return over(points, "map points (polylines, polygons, lane boundaries and neighbours)", limits.max_map_points);
+  return absl::OkStatus();
+}
+
 }  // namespace
 
-absl::StatusOr<Scenario> scenario_from_womd_bytes(std::string_view bytes, const std::string& where) {
+absl::StatusOr<Scenario> scenario_from_womd_bytes(std::string_view bytes, const std::string& where,
+                                                  const WomdLimits& limits) {
   if (bytes.size() > static_cast<size_t>(INT_MAX))
     return absl::InvalidArgumentError(
         absl::StrCat(where, ": ", bytes.size(), " bytes is too large for one Scenario proto"));
+  if (auto st = check_womd_limits(bytes, limits, where); !st.ok()) return st;
   if (auto st = check_wire(bytes, *wo::Scenario::descriptor(), where); !st.ok()) return st;
   wo::Scenario proto;
   if (!proto.ParseFromArray(bytes.data(), static_cast<int>(bytes.size())))

@@ -3,6 +3,7 @@
 // not kept.
 #pragma once
 
+#include <climits>
 #include <string>
 #include <string_view>
 
@@ -11,10 +12,23 @@
 
 namespace ss {
 
-// Decodes one serialized waymo.open_dataset.Scenario: the wire bytes are checked first (wire_check.h), so a field of
-// the wrong wire type, an unknown enum value or bad UTF-8 is an error rather than silently dropped; then the
-// scenario is converted and validated (validate.h). Errors start with `where` (e.g. "x.tfrecord record 2").
-absl::StatusOr<Scenario> scenario_from_womd_bytes(std::string_view bytes, const std::string& where);
+// Limits on what a decoded scenario may hold, checked on the wire bytes before anything is built: decoding costs
+// tens of bytes of memory per element, and an element costs as little as 2 bytes on the wire (an empty state or
+// point), so a 36 MB request could take gigabytes to be refused after. A real WOMD scenario holds at most 257
+// tracks, 301 map features, 19,628 map points and 91 frames (the 50 records of data/womd, counted on the wire).
+struct WomdLimits {
+  int max_tracks = INT_MAX;        // tracks (and tracks_to_predict)
+  int max_map_features = INT_MAX;  // map features (and lane states in one frame: each names a lane)
+  int max_frames = INT_MAX;        // timestamps, states of one track, dynamic map states
+  int max_map_points = INT_MAX;    // points, polygons' corners, lane boundaries and neighbours of all map features
+};
+
+// Decodes one serialized waymo.open_dataset.Scenario: `limits` are checked on the wire first (RESOURCE_EXHAUSTED
+// naming the count and the limit), then the wire bytes are checked (wire_check.h), so a field of the wrong wire type,
+// an unknown enum value or bad UTF-8 is an error rather than silently dropped; then the scenario is converted and
+// validated (validate.h). Errors start with `where` (e.g. "x.tfrecord record 2").
+absl::StatusOr<Scenario> scenario_from_womd_bytes(std::string_view bytes, const std::string& where,
+                                                  const WomdLimits& limits = {});
 
 // Encodes a scenario as a serialized waymo.open_dataset.Scenario, laid out as real WOMD files are (a real record
 // re-encodes to the same bytes). Deterministic: equal scenarios give equal bytes; for a scenario that

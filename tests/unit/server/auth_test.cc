@@ -27,6 +27,18 @@ TEST(TokenAuth, WrongOrMissingCredentialsAreUnauthenticated) {
     EXPECT_EQ((*a)->tenant_of_header(h).status().code(), absl::StatusCode::kUnauthenticated) << h;
 }
 
+// The header's grammar is RFC 6750's `"Bearer" 1*SP b64token` with the scheme case-insensitive (RFC 7235): one or
+// more spaces, then exactly the token. Once a tab, or whitespace after the token, was taken too.
+TEST(TokenAuth, TheHeaderIsBearerSpacesAndTheTokenExactly) {
+  auto a = TokenAuth::parse("t.txt", kTok1 + " alice\n");
+  ASSERT_TRUE(a.ok());
+  for (const std::string& h : {"Bearer " + kTok1, "bearer " + kTok1, "BEARER " + kTok1, "Bearer   " + kTok1})
+    EXPECT_EQ(*(*a)->tenant_of_header(h), "alice") << h;
+  for (const std::string& h : {"Bearer\t" + kTok1, "Bearer \t" + kTok1, "Bearer " + kTok1 + " ",
+                               "Bearer " + kTok1 + "\t", " Bearer " + kTok1, "Bearer" + kTok1})
+    EXPECT_EQ((*a)->tenant_of_header(h).status().code(), absl::StatusCode::kUnauthenticated) << h;
+}
+
 TEST(TokenAuth, AMalformedFileIsRefusedNamingFileAndLine) {
   struct Case {
     std::string text;

@@ -10,6 +10,9 @@
 #include <filesystem>
 #include <thread>
 
+#include "engine/scenario/read.h"
+#include "engine/scenario/womd_proto.h"
+#include "server/allocator.h"
 #include "server/convert.h"
 #include "server/session_id.h"
 
@@ -332,6 +335,113 @@ TEST_F(ManagerTest, OnlyAnAgentsControllerSendsItsPoses) {
   ASSERT_TRUE(got[1].ok()) << got[1].status();
   EXPECT_EQ((*got[0])[0].tick, 1);
   EXPECT_EQ((*got[1])[0].tick, 1);
+}
+
+// Once a tenant's creates evicted another tenant's idle session, and without a snapshot directory dropped it: the
+// victim's next call got the NOT_FOUND of an id that never was, and the refusal the other tenant got named the
+// server-wide counts.
+TEST_F(ManagerTest, OneTenantNeverDropsAnothersSessionNorLearnsItsCounts) {
+  ManagerOptions o;
+  o.max_sessions = 3;
+  o.evict_idle_s = 0;  // every session is idle enough to be evicted at once
+  SessionManager m(*engine_, o, metrics_);
+  std::string id;
+  ASSERT_TRUE(m.create("bob", {*name_, ""}, {}, 0, "bobs", soon(), &id).ok());
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a1", soon(), &id).ok());
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a2", soon(), &id).ok());
+  auto third = m.create("alice", {*name_, ""}, {}, 0, "a3", soon(), &id);
+  EXPECT_EQ(third.status().code(), absl::StatusCode::kResourceExhausted) << third.status();
+  const std::string msg(third.status().message());
+  EXPECT_EQ(msg.find("3 sessions"), std::string::npos) << msg;
+  EXPECT_EQ(msg.find("bytes"), std::string::npos) << msg;
+  auto bobs = m.get("bobs", "bob");
+  EXPECT_TRUE(bobs.ok()) << bobs.status();
+  EXPECT_TRUE(m.get("a1", "alice").ok());
+  EXPECT_TRUE(m.get("a2", "alice").ok());
+}
+
+// Per-tenant quotas: a tenant at its own cap is refused with its own figures, and the other tenants still create.
+TEST_F(ManagerTest, ATenantQuotaHoldsAndLeavesRoomForTheOthers) {
+  ManagerOptions o;
+  o.max_sessions = 8;
+  o.tenant_max_sessions = 2;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  std::string id;
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a1", soon(), &id).ok());
+  ASSERT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a2", soon(), &id).ok());
+  auto third = m.create("alice", {*name_, ""}, {}, 0, "a3", soon(), &id);
+  EXPECT_EQ(third.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_NE(third.status().message().find("--tenant_max_sessions=2"), std::string::npos) << third.status();
+  EXPECT_EQ(m.fork("a1", "alice", "", soon()).status().code(), absl::StatusCode::kResourceExhausted);
+  ASSERT_TRUE(m.create("bob", {*name_, ""}, {}, 0, "b1", soon(), &id).ok());
+  ASSERT_TRUE(m.create("bob", {*name_, ""}, {}, 0, "b2", soon(), &id).ok());
+  ASSERT_TRUE(m.close("a1", "alice").ok());
+  EXPECT_TRUE(m.create("alice", {*name_, ""}, {}, 0, "a3", soon(), &id).ok());
+}
+
+// Once CloseSession let a StepScene of many ticks compute to its end and return OK.
+TEST_F(ManagerTest, CloseStopsALongStepOfTheSession) {
+  ManagerOptions o;
+  o.evict_idle_s = 1000;
+  SessionManager m(*engine_, o, metrics_);
+  SessionOptions so;
+  so.control_sdc = false;  // no controlled agent: num_ticks > 1 is allowed
+  ASSERT_TRUE(create(m, "long", so).ok());
+  absl::StatusOr<std::vector<TickView>> got = absl::UnknownError("not run");
+  std::thread t([&] { got = m.step("long", "", "", {}, 1000, soon()); });
+  while (true) {
+    auto g = m.get("long", "");
+    if (!g.ok() || g->second.tick >= 2) break;
+    std::this_thread::yield();
+  }
+  ASSERT_TRUE(m.close("long", "").ok());
+  t.join();
+  EXPECT_EQ(got.status().code(), absl::StatusCode::kAborted) << got.status();
+  EXPECT_NE(got.status().message().find("closed"), std::string::npos) << got.status();
+}
+
+// What a session on a client-sent scenario holds is what it counts (--max_cache_mb): once 12 sessions on a 60 MB
+// scenario counted 848 MB with 1,670 MB in use. The scenario here: a real one with its map features copied eight
+// times over (ids and places shifted) and laser data, so the scenario's own parts dominate.
+TEST_F(ManagerTest, ASessionOnAClientSentScenarioCountsWhatItHolds) {
+  auto all = read_scenarios(SS_DATA_DIR "/womd/tfrecord");
+  ASSERT_TRUE(all.ok()) << all.status();
+  Scenario s = all->front();
+  const size_t features = s.map_features.size();
+  int64_t next_id = 0;
+  for (const MapFeature& f : s.map_features) next_id = std::max(next_id, f.id + 1);
+  for (int copy = 1; copy < 8; ++copy)
+    for (size_t i = 0; i < features; ++i) {
+      MapFeature f = s.map_features[i];
+      f.id = next_id++;
+      for (MapPoint& p : f.points) p.x += 2000.0 * copy;
+      f.lane = {};
+      if (f.kind == MapFeatureKind::lane) f.kind = MapFeatureKind::road_line;
+      f.stop_sign_lanes.clear();
+      s.map_features.push_back(f);
+    }
+  s.laser_data.assign(5, std::string(1 << 20, 'l'));
+  SessionSource source;
+  source.womd_bytes = scenario_to_womd_bytes(s);
+  ManagerOptions o;
+  o.evict_idle_s = 1000;
+  o.compute_threads = 1;
+  SessionManager m(*engine_, o, metrics_);
+  ASSERT_TRUE(create(m, "warm-up").ok());  // the compute thread's buffers, the engine's first-use state
+  ASSERT_TRUE(m.step("warm-up", "", "", {}, 1, soon()).ok());
+  const uint64_t before = allocator_stats().in_use;
+  std::string id;
+  auto t = m.create("", source, {}, 0, "big", soon(), &id);
+  ASSERT_TRUE(t.ok()) << t.status();
+  t = absl::UnknownError("dropped");  // the first tick's copy is the caller's, not the session's
+  const uint64_t held = allocator_stats().in_use - before;
+  const uint64_t counted = m.get("big", "")->first.memory_bytes;
+  std::printf("a session on a %zu-byte client-sent scenario holds %.1f MiB, counts %.1f MiB\n",
+              source.womd_bytes.size(), held / 1048576.0, counted / 1048576.0);
+  EXPECT_GT(held, uint64_t{8} << 20);
+  EXPECT_GE(counted, held * 9 / 10) << "held " << held << ", counted " << counted;
+  EXPECT_LE(counted, held * 11 / 10) << "held " << held << ", counted " << counted;
 }
 
 TEST(SessionId, TheRuleAndShortEchoes) {
