@@ -156,7 +156,8 @@ TEST_F(StoreTest, AnotherTenantFindsNothingAndAsksForNothing) {
 TEST_F(StoreTest, ALapsedLeaseIsTakenByAnotherAndTheOldHolderIsFenced) {
   auto e = a_->create("s3", "t", "snap-a");
   ASSERT_TRUE(e.ok());
-  // Not renewed for longer than the lease (A paused or cut off): B takes it.
+  // Not renewed for longer than the lease (A paused or cut off): B takes it. These waits are on wall time because a
+  // lease's expiry is the redis-server's own (SET PX runs on its clock); no test clock of ours can advance it.
   std::this_thread::sleep_for(std::chrono::milliseconds(kLeaseMs + 100));
   auto t = b_->acquire("s3", "t");
   ASSERT_TRUE(t.ok());
