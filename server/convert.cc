@@ -75,6 +75,7 @@ absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest
   if (r.max_agents() > 0) o.max_agents = r.max_agents();
   if (r.densify_target() < 0) return absl::InvalidArgumentError("densify_target must not be negative");
   o.densify_target = r.densify_target();
+  o.agent_counts.assign(r.agent_counts().begin(), r.agent_counts().end());  // the engine checks them
   o.tick_hz = r.tick_hz() == 0 ? 2 : r.tick_hz();  // the engine checks the value
   return o;
 }

@@ -38,6 +38,7 @@ std::optional<SessionMode> session_mode_from_name(const std::string& name) {
 namespace {
 
 constexpr int kRejectTries = 6;             // paper appendix D: resample an overlapping new agent at most 6 times
+constexpr int kCountTries = 50;             // agent_counts: redraws of an agent that found no free place
 // A new agent's tokens (type, end of agents, map segment, relative state) are drawn from the plain softmax, as the
 // paper samples every token but motion; the session's temperature and top-p shape motion and lights. At the
 // session's 0.7 the end of agents came too rarely once full mode began at the current step (165 % of the log's
@@ -374,7 +375,9 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
                                         int64_t* new_id) {
   const double t = kPlacementTemperature;
   if (static_cast<int>(agents_.size()) >= options_.max_agents) return NewAgent::ended;
-  if (!force_continue) {
+  const bool by_count = !quota_.empty();
+  if (by_count && std::all_of(quota_.begin(), quota_.end(), [](int n) { return n <= 0; })) return NewAgent::ended;
+  if (!force_continue && !by_count) {
     const Mat end = model_->end_of_agents_logits(h_last);
     if (sample_token({end.data(), 2}, t, 1.0, rng_) == 1) return NewAgent::ended;
   }
@@ -396,8 +399,16 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
   soa.intra_index = 4 * order;
   tok = {soa};
   const Mat h_soa = decode(tok);
-  a.type = req && req->type ? *req->type
-                            : sample_token({model_->agent_type_logits(h_soa).data(), kAgentTypes}, t, 1.0, rng_);
+  if (req && req->type) {
+    a.type = *req->type;
+  } else {
+    Mat type_logits = model_->agent_type_logits(h_soa);
+    // By count: only the types still wanted (the model's distribution over them, renormalised).
+    if (by_count)
+      for (int k = 0; k < kAgentTypes; ++k)
+        if (quota_[k] <= 0) type_logits(0, k) = -INFINITY;
+    a.type = sample_token({type_logits.data(), kAgentTypes}, t, 1.0, rng_);
+  }
   DecoderToken type = soa;
   type.kind = TokenKind::type;
   type.agent_type = a.type;
@@ -540,6 +551,27 @@ absl::Status Session::add_agents(bool allow_new, int force_new, const std::vecto
       }
     }
   };
+  if (!quota_.empty()) {
+    // By count: every requested agent is placed. A draw that finds no free place is redrawn (its type and segment
+    // too); only a region with no room left for kCountTries draws in a row is an error.
+    int wanted = 0;
+    for (int n : quota_) wanted += n;
+    for (int placed = 0, dropped = 0; placed < wanted;) {
+      int64_t id = 0;
+      const NewAgent r = sample_agent(last_group_output_, true, nullptr, static_cast<int>(agents_.size()), &id);
+      if (r == NewAgent::placed) {
+        --quota_[agents_.back().type];
+        ++placed;
+        dropped = 0;
+        continue;
+      }
+      if (r == NewAgent::ended || ++dropped >= kCountTries)
+        return absl::ResourceExhaustedError(absl::StrCat(
+            "agent_counts: placed ", placed, " of the ", wanted, " agents requested; no free place for another within ",
+            options_.roi_radius, " m after ", kCountTries, " draws (", kRejectTries, " tries each)"));
+    }
+    return absl::OkStatus();
+  }
   fill(true, force_new);
   if (allow_new) fill(false, std::numeric_limits<int>::max());
   return absl::OkStatus();
@@ -715,7 +747,8 @@ absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& contro
   // Agents that left the region of interest retire; their slots are recycled once out of the window.
   const Vec2 centre = roi_centre();
   for (auto it = agents_.begin(); it != agents_.end();) {
-    if (!it->controlled && distance({it->state.x, it->state.y}, centre) > options_.roi_radius) {
+    // Placed by count, the scene is the requested agents throughout: none retires.
+    if (!it->controlled && options_.agent_counts.empty() && distance({it->state.x, it->state.y}, centre) > options_.roi_radius) {
       left_.push_back(it->id);
       released_slots_.push_back({it->slot, step_});
       it = agents_.erase(it);
@@ -724,7 +757,8 @@ absl::StatusOr<StepResult> Session::step(const std::vector<ControlInput>& contro
     }
   }
   trim_replay();
-  if (auto st = decode_step(true, options_.mode != SessionMode::motion, 0, {}, nullptr); !st.ok()) return st;
+  const bool allow_new = options_.mode != SessionMode::motion && options_.agent_counts.empty();
+  if (auto st = decode_step(true, allow_new, 0, {}, nullptr); !st.ok()) return st;
   return current();
 }
 
