@@ -62,6 +62,13 @@ ABSL_FLAG(std::string, protocol, "wosac",
           "Challenge (full mode given the log's counts per type, the metric pooled over objects, the initial-state "
           "MMD beside it; --baseline log|placement)");
 
+ABSL_FLAG(double, placement_temperature, ss::SessionOptions{}.placement_temperature,
+          "--protocol scenario-gen: the temperature of a new agent's tokens (type, map segment, relative state)");
+ABSL_FLAG(double, placement_top_p, ss::SessionOptions{}.placement_top_p,
+          "--protocol scenario-gen: the nucleus of a new agent's tokens");
+ABSL_FLAG(std::string, history, "constant-velocity",
+          "--protocol scenario-gen: the generated agents' second of history: constant-velocity (back along their "
+          "generated velocity) or clear (the same, held where a step back would overlap another box)");
 ABSL_FLAG(double, roi_radius, ss::SessionOptions{}.roi_radius,
           "--protocol scenario-gen: metres around the SDC where agents are placed (the session's region; the "
           "placement baseline's too)");
@@ -94,7 +101,8 @@ constexpr const char* kUsage =
     "  --compare: --seed defaults to 1; --json OUT writes the comparison too.\n"
     "       scenestreamer eval --protocol scenario-gen --data ... --json OUT.json ([--model W] [--mode full] |\n"
     "                          --baseline log|placement | --submission FILE_OR_DIR) [--rollouts K] [--seed S]\n"
-    "                          [--top-p P] [--temperature T] [--roi-radius R] [--wosac-submission DIR]\n"
+    "                          [--top-p P] [--temperature T] [--roi-radius R] [--placement-temperature T]\n"
+    "                          [--placement-top-p P] [--history constant-velocity|clear] [--wosac-submission DIR]\n"
     "  The Scenario Generation Challenge (docs/evaluation.md): the model in full mode places the log's number of\n"
     "  vehicles, pedestrians and cyclists around the SDC (whose history is the only one given) and generates every\n"
     "  frame; scored by the challenge's metric (the sim-agents features pooled over objects, every frame) with the\n"
@@ -142,7 +150,8 @@ int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& p
     return fail("--protocol scenario-gen generates the scene: --mode full only");
   const std::string model_flag = line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p),
                                                    flag(FLAGS_temperature), flag(FLAGS_motion_reject),
-                                                   flag(FLAGS_roi_radius)});
+                                                   flag(FLAGS_roi_radius), flag(FLAGS_placement_temperature),
+                                                   flag(FLAGS_placement_top_p)});
   if (line.has(FLAGS_baseline)) {
     const std::string b = absl::GetFlag(FLAGS_baseline);
     if (b == "log") o.policy = ScenarioGenPolicy::log_oracle;
@@ -165,6 +174,13 @@ int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& p
   o.session.temperature = absl::GetFlag(FLAGS_temperature);
   o.session.motion_reject = absl::GetFlag(FLAGS_motion_reject);
   o.session.roi_radius = absl::GetFlag(FLAGS_roi_radius);
+  o.session.placement_temperature = absl::GetFlag(FLAGS_placement_temperature);
+  o.session.placement_top_p = absl::GetFlag(FLAGS_placement_top_p);
+  const std::string history = absl::GetFlag(FLAGS_history);
+  if (history == "clear") o.history = ScenarioGenHistory::clear;
+  else if (history != "constant-velocity") return fail("--history '" + history + "' is not constant-velocity or clear");
+  if (line.has(FLAGS_history) && o.policy != ScenarioGenPolicy::model)
+    return fail("--history shapes the model's generated agents: it needs the model policy");
   if (!(o.session.roi_radius > 0) || !std::isfinite(o.session.roi_radius)) return fail("--roi-radius must be positive");
   o.placement_radius = o.session.roi_radius;
   run.threads = absl::GetFlag(FLAGS_threads);

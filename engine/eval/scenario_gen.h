@@ -59,6 +59,13 @@ struct GeneratedScene {
 // more sim agents than the model has agent slots (one val scenario: 130 against 128).
 std::array<int, 3> model_request(std::array<int, 3> requested, int slots);
 
+// How a generated agent's history (the frames before the current one, which the model does not generate: docs/model.md,
+// "Scenario generation") is made. constant_velocity: it moves back along its generated velocity, heading held.
+// clear: the same, but where that step back would overlap a box already settled at that frame (the SDC's logged one,
+// or another generated agent's) it holds the pose of the frame after from there back (clear_history).
+enum class ScenarioGenHistory { constant_velocity, clear };
+const char* scenario_gen_history_name(ScenarioGenHistory h);
+
 // A full-mode rollout (run_model_rollout with options.agent_counts = `requested`, SdcRule::model) as the
 // challenge's scene: the SDC keeps its logged history up to the current frame, then the model's; the generated
 // agents of each type wear the ids of the log's sim agents of that type in track order (blind to where the log's
@@ -69,7 +76,8 @@ std::array<int, 3> model_request(std::array<int, 3> requested, int slots);
 // (model_request cut it) are placed by the placement baseline's rule (within `radius`, drawn from `seed`) and counted
 // in `filled`.
 absl::StatusOr<GeneratedScene> generated_scene(const Scenario& s, const std::vector<StepResult>& steps,
-                                               const std::array<int, 3>& requested, double radius, uint64_t seed);
+                                               const std::array<int, 3>& requested, double radius, uint64_t seed,
+                                               ScenarioGenHistory history = ScenarioGenHistory::constant_velocity);
 
 // The placement baseline: the requested counts placed at random points within `radius` of the SDC (vehicles and
 // cyclists on lane centres along the lane, pedestrians beside the road edges on their off-road side, 1.5 m out, or
@@ -102,6 +110,7 @@ struct ScenarioGenOptions {
   int rollouts = 32;
   double placement_radius = 100.0;  // the placement baseline's region around the SDC (the session's roi_radius)
   bool submission_precision = false;  // score the scenes as a submission file holds them (float32)
+  ScenarioGenHistory history = ScenarioGenHistory::constant_velocity;  // the model's generated agents
 };
 
 struct ScenarioGenEvaluation {

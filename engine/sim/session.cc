@@ -39,11 +39,11 @@ namespace {
 
 constexpr int kRejectTries = 6;             // paper appendix D: resample an overlapping new agent at most 6 times
 constexpr int kCountTries = 50;             // agent_counts: redraws of an agent that found no free place
-// A new agent's tokens (type, end of agents, map segment, relative state) are drawn from the plain softmax, as the
-// paper samples every token but motion; the session's temperature and top-p shape motion and lights. At the
-// session's 0.7 the end of agents came too rarely once full mode began at the current step (165 % of the log's
-// agents on the val scenarios; 80 % at 1.0, with the placed vehicles' offroad share 0.468 against the log's 0.466).
-constexpr double kPlacementTemperature = 1.0;
+// A new agent's tokens (type, end of agents, map segment, relative state) are drawn at options.placement_temperature
+// and placement_top_p, the plain softmax by default, as the paper samples every token but motion; the session's
+// temperature and top-p shape motion and lights. At the session's 0.7 the end of agents came too rarely once full
+// mode began at the current step (165 % of the log's agents on the val scenarios; 80 % at 1.0, with the placed
+// vehicles' offroad share 0.468 against the log's 0.466).
 constexpr double kMaxStepDistance = 50.0;   // metres in one 0.5 s step (100 m/s): more is a teleport (StateForce)
 constexpr double kMaxSpeed = 100.0;         // m/s
 constexpr double kRejectBrake = 6.0;        // m/s^2: the braking motion reject sampling leaves room for
@@ -373,13 +373,13 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
 
 Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order,
                                         int64_t* new_id) {
-  const double t = kPlacementTemperature;
+  const double t = options_.placement_temperature, p = options_.placement_top_p;
   if (static_cast<int>(agents_.size()) >= options_.max_agents) return NewAgent::ended;
   const bool by_count = !quota_.empty();
   if (by_count && std::all_of(quota_.begin(), quota_.end(), [](int n) { return n <= 0; })) return NewAgent::ended;
   if (!force_continue && !by_count) {
     const Mat end = model_->end_of_agents_logits(h_last);
-    if (sample_token({end.data(), 2}, t, 1.0, rng_) == 1) return NewAgent::ended;
+    if (sample_token({end.data(), 2}, t, p, rng_) == 1) return NewAgent::ended;
   }
   const int slot = allocate_slot();
   if (slot < 0) return NewAgent::ended;
@@ -407,7 +407,7 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
     if (by_count)
       for (int k = 0; k < kAgentTypes; ++k)
         if (quota_[k] <= 0) type_logits(0, k) = -INFINITY;
-    a.type = sample_token({type_logits.data(), kAgentTypes}, t, 1.0, rng_);
+    a.type = sample_token({type_logits.data(), kAgentTypes}, t, p, rng_);
   }
   DecoderToken type = soa;
   type.kind = TokenKind::type;
@@ -454,7 +454,7 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
     for (int attempt = 0; attempt < kRejectTries && !placed; ++attempt) {
       const int cache_before_ms = cache_.size();
       const size_t replay_before_ms = replay_.size();
-      seg = sample_token({pointer.data(), static_cast<size_t>(pointer.cols())}, t, 1.0, rng_);
+      seg = sample_token({pointer.data(), static_cast<size_t>(pointer.cols())}, t, p, rng_);
       DecoderToken ms = type;
       ms.kind = TokenKind::map_segment;
       ms.intra_index = 4 * order + 2;
@@ -466,7 +466,7 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
       RsHead head = model_->rs_begin(h_ms);
       for (int f = 0; f < kRsFields; ++f) {
         const Vec logits = model_->rs_next(head, f == 0 ? 0 : bins[f - 1]);
-        bins[f] = sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, 1.0, rng_);
+        bins[f] = sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, p, rng_);
       }
       RelativeState rel;
       for (int f = 0; f < kRsFields; ++f) rel[f] = state_bin_value(f, bins[f]);

@@ -29,6 +29,11 @@ absl::Status check_options(const SessionOptions& o, const ModelConfig& c) {
     return absl::InvalidArgumentError(absl::StrCat("tick_hz ", o.tick_hz, ": only 2 or 10"));
   if (o.densify_target < 0 || o.densify_target > o.max_agents)
     return absl::InvalidArgumentError(absl::StrCat("options.densify_target ", o.densify_target, " is outside 0..max_agents"));
+  if (!(o.placement_temperature > 0) || !std::isfinite(o.placement_temperature))
+    return absl::InvalidArgumentError(absl::StrCat("options.placement_temperature ", o.placement_temperature,
+                                                   " must be positive"));
+  if (!(o.placement_top_p > 0 && o.placement_top_p <= 1))
+    return absl::InvalidArgumentError(absl::StrCat("options.placement_top_p ", o.placement_top_p, " must be in (0, 1]"));
   if (!o.agent_counts.empty()) {
     if (o.mode != SessionMode::full)
       return absl::InvalidArgumentError(absl::StrCat("options.agent_counts: only full mode places agents by count (mode ",

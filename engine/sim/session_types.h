@@ -34,6 +34,10 @@ struct SessionOptions {
   std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
   bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too
   int densify_target = 0;      // densify: agents to reach at the first step
+  // A new agent's tokens (type, end of agents, map segment, relative state): the plain softmax by default, as the
+  // paper samples every token but motion (docs/model.md, "Full mode"; "Scenario generation" measures other values).
+  double placement_temperature = 1.0;
+  double placement_top_p = 1.0;
   // Full mode: the agents to place per type (vehicles, pedestrians, cyclists), the Scenario Generation Challenge's
   // input. Empty: the model decides how many (its end-of-agents head). Given: the scenario's SDC (valid at the
   // current frame) is taken from the log at the first step, as the challenge gives the ego's history, and is driven

@@ -124,6 +124,9 @@ int run_scenario_gen(ScenarioGenRun& run) {
     j["temperature"] = run.options.session.temperature;
     j["motion_reject"] = run.options.session.motion_reject;
     j["roi_radius"] = run.options.session.roi_radius;
+    j["placement_temperature"] = run.options.session.placement_temperature;
+    j["placement_top_p"] = run.options.session.placement_top_p;
+    j["history"] = scenario_gen_history_name(run.options.history);
   }
   if (run.options.policy == ScenarioGenPolicy::placement) j["seed"] = run.options.session.seed;
   j["rollouts"] = d.rollouts;
