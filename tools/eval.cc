@@ -66,6 +66,8 @@ ABSL_FLAG(double, placement_temperature, ss::SessionOptions{}.placement_temperat
           "--protocol scenario-gen: the temperature of a new agent's tokens (type, map segment, relative state)");
 ABSL_FLAG(double, placement_top_p, ss::SessionOptions{}.placement_top_p,
           "--protocol scenario-gen: the nucleus of a new agent's tokens");
+ABSL_FLAG(double, placement_clearance, ss::SessionOptions{}.placement_clearance,
+          "--protocol scenario-gen: metres a new agent's box keeps from every other box when placed");
 ABSL_FLAG(std::string, history, "constant-velocity",
           "--protocol scenario-gen: the generated agents' second of history: constant-velocity (back along their "
           "generated velocity) or clear (the same, held where a step back would overlap another box)");
@@ -102,7 +104,8 @@ constexpr const char* kUsage =
     "       scenestreamer eval --protocol scenario-gen --data ... --json OUT.json ([--model W] [--mode full] |\n"
     "                          --baseline log|placement | --submission FILE_OR_DIR) [--rollouts K] [--seed S]\n"
     "                          [--top-p P] [--temperature T] [--roi-radius R] [--placement-temperature T]\n"
-    "                          [--placement-top-p P] [--history constant-velocity|clear] [--wosac-submission DIR]\n"
+    "                          [--placement-top-p P] [--placement-clearance M] [--history constant-velocity|clear]\n"
+    "                          [--wosac-submission DIR]\n"
     "  The Scenario Generation Challenge (docs/evaluation.md): the model in full mode places the log's number of\n"
     "  vehicles, pedestrians and cyclists around the SDC (whose history is the only one given) and generates every\n"
     "  frame; scored by the challenge's metric (the sim-agents features pooled over objects, every frame) with the\n"
@@ -151,7 +154,7 @@ int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& p
   const std::string model_flag = line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p),
                                                    flag(FLAGS_temperature), flag(FLAGS_motion_reject),
                                                    flag(FLAGS_roi_radius), flag(FLAGS_placement_temperature),
-                                                   flag(FLAGS_placement_top_p)});
+                                                   flag(FLAGS_placement_top_p), flag(FLAGS_placement_clearance)});
   if (line.has(FLAGS_baseline)) {
     const std::string b = absl::GetFlag(FLAGS_baseline);
     if (b == "log") o.policy = ScenarioGenPolicy::log_oracle;
@@ -176,6 +179,7 @@ int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& p
   o.session.roi_radius = absl::GetFlag(FLAGS_roi_radius);
   o.session.placement_temperature = absl::GetFlag(FLAGS_placement_temperature);
   o.session.placement_top_p = absl::GetFlag(FLAGS_placement_top_p);
+  o.session.placement_clearance = absl::GetFlag(FLAGS_placement_clearance);
   const std::string history = absl::GetFlag(FLAGS_history);
   if (history == "clear") o.history = ScenarioGenHistory::clear;
   else if (history != "constant-velocity") return fail("--history '" + history + "' is not constant-velocity or clear");

@@ -89,38 +89,6 @@ std::vector<BoxState> sdc_states(const Scenario& s, const std::vector<StepState>
   return st;
 }
 
-// History frames (now - 1 down to 0) of the objects `moved` made clear of every other box: going back in time each
-// steps back along its own history unless that box would overlap one already settled at that frame (the objects not
-// in `moved` are settled, and those of `moved` settled before it); then it holds the pose of the frame after. An
-// agent held so was standing there and moved off later: what keeps two generated agents, or a generated one and the
-// SDC's logged past, from passing through each other in the history the model did not generate. Where holding
-// overlaps too (something moves into its place), the step back is kept.
-void clear_history(JointScene& scene, int now, const std::vector<size_t>& moved) {
-  const auto box = [](const BoxState& b) { return Box{{b.x, b.y, b.heading}, b.length, b.width}; };
-  std::vector<bool> is_moved(scene.objects.size(), false);
-  for (size_t k : moved) is_moved[k] = true;
-  for (int f = now - 1; f >= 0; --f) {
-    std::vector<const BoxState*> settled;
-    for (size_t k = 0; k < scene.objects.size(); ++k)
-      if (!is_moved[k]) settled.push_back(&scene.objects[k].states[f]);
-    for (size_t k : moved) {
-      BoxState& b = scene.objects[k].states[f];
-      const BoxState& after = scene.objects[k].states[f + 1];
-      const auto clear = [&](const BoxState& c) {
-        return std::none_of(settled.begin(), settled.end(), [&](const BoxState* o) {
-          return std::abs(o->x - c.x) + std::abs(o->y - c.y) < o->length + c.length + o->width + c.width &&
-                 boxes_overlap(box(*o), box(c));
-        });
-      };
-      if (!clear(b) && clear(after)) {
-        // Held from here back: every earlier frame keeps this pose too.
-        for (int g = f; g >= 0; --g) scene.objects[k].states[g] = after;
-      }
-      settled.push_back(&b);
-    }
-  }
-}
-
 // The placement baseline's rule: random lane points for vehicles and cyclists, sidewalk points for pedestrians, the
 // box and speed of a random log agent of the type, redrawn where the box would overlap one already placed.
 class Placer {
@@ -447,6 +415,32 @@ std::vector<InitialAgent> initial_agents(const Scenario& s, const JointScene& sc
     out.push_back({b.x, b.y, b.heading, b.length, b.width, (b.x - before.x) / dt, (b.y - before.y) / dt, o.type});
   }
   return out;
+}
+
+void clear_history(JointScene& scene, int now, const std::vector<size_t>& moved) {
+  const auto box = [](const BoxState& b) { return Box{{b.x, b.y, b.heading}, b.length, b.width}; };
+  std::vector<bool> is_moved(scene.objects.size(), false);
+  for (size_t k : moved) is_moved[k] = true;
+  for (int f = now - 1; f >= 0; --f) {
+    std::vector<const BoxState*> settled;
+    for (size_t k = 0; k < scene.objects.size(); ++k)
+      if (!is_moved[k]) settled.push_back(&scene.objects[k].states[f]);
+    for (size_t k : moved) {
+      BoxState& b = scene.objects[k].states[f];
+      const BoxState& after = scene.objects[k].states[f + 1];
+      const auto clear = [&](const BoxState& c) {
+        return std::none_of(settled.begin(), settled.end(), [&](const BoxState* o) {
+          return std::abs(o->x - c.x) + std::abs(o->y - c.y) < o->length + c.length + o->width + c.width &&
+                 boxes_overlap(box(*o), box(c));
+        });
+      };
+      if (!clear(b) && clear(after)) {
+        // Held from here back: every earlier frame keeps this pose too.
+        for (int g = f; g >= 0; --g) scene.objects[k].states[g] = after;
+      }
+      settled.push_back(&b);
+    }
+  }
 }
 
 JointScene scenario_gen_log_scene(const Scenario& s) {

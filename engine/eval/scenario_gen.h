@@ -64,6 +64,12 @@ std::array<int, 3> model_request(std::array<int, 3> requested, int slots);
 // clear: the same, but where that step back would overlap a box already settled at that frame (the SDC's logged one,
 // or another generated agent's) it holds the pose of the frame after from there back (clear_history).
 enum class ScenarioGenHistory { constant_velocity, clear };
+// The history frames (now - 1 down to 0) of the objects `moved` made clear of every other box: going back in time
+// each steps back along its own history unless that box would overlap one already settled at that frame (the objects
+// not in `moved` are settled, and those of `moved` settled before it); then it holds the pose of the frame after from
+// there back: it was standing there and moved off later. Where holding overlaps too (something moves into its
+// place), the step back is kept.
+void clear_history(JointScene& scene, int now, const std::vector<size_t>& moved);
 const char* scenario_gen_history_name(ScenarioGenHistory h);
 
 // A full-mode rollout (run_model_rollout with options.agent_counts = `requested`, SdcRule::model) as the

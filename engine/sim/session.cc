@@ -471,8 +471,11 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
       RelativeState rel;
       for (int f = 0; f < kRsFields; ++f) rel[f] = state_bin_value(f, bins[f]);
       a.state = global_state(rel, map_->segments[seg].pose);
+      // Clear of every box, by options.placement_clearance metres on each side (0: not overlapping).
+      Box mine = box_of(a.state);
+      mine.length += 2 * options_.placement_clearance, mine.width += 2 * options_.placement_clearance;
       placed = std::none_of(agents_.begin(), agents_.end(),
-                            [&](const Agent& o) { return boxes_overlap(box_of(o.state), box_of(a.state)); });
+                            [&](const Agent& o) { return boxes_overlap(box_of(o.state), mine); });
       if (!placed) undo_to(cache_before_ms, replay_before_ms);
     }
     if (!placed) {

@@ -34,6 +34,9 @@ absl::Status check_options(const SessionOptions& o, const ModelConfig& c) {
                                                    " must be positive"));
   if (!(o.placement_top_p > 0 && o.placement_top_p <= 1))
     return absl::InvalidArgumentError(absl::StrCat("options.placement_top_p ", o.placement_top_p, " must be in (0, 1]"));
+  if (!(o.placement_clearance >= 0 && o.placement_clearance <= 10))
+    return absl::InvalidArgumentError(absl::StrCat("options.placement_clearance ", o.placement_clearance,
+                                                   " is outside 0..10 m"));
   if (!o.agent_counts.empty()) {
     if (o.mode != SessionMode::full)
       return absl::InvalidArgumentError(absl::StrCat("options.agent_counts: only full mode places agents by count (mode ",

@@ -84,6 +84,7 @@ std::string Session::save() const {
   for (int n : options_.agent_counts) o->add_agent_counts(n);
   o->set_placement_temperature(options_.placement_temperature);
   o->set_placement_top_p(options_.placement_top_p);
+  o->set_placement_clearance(options_.placement_clearance);
   m.set_tick(tick_);
   for (auto [poses, out] : {std::pair{&latest_pose_, m.mutable_latest_pose()},
                             std::pair{&step_controls_, m.mutable_step_controls()}}) {
@@ -198,6 +199,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   o.agent_counts.assign(mo.agent_counts().begin(), mo.agent_counts().end());
   o.placement_temperature = mo.has_placement_temperature() ? mo.placement_temperature() : 1.0;
   o.placement_top_p = mo.has_placement_top_p() ? mo.placement_top_p() : 1.0;
+  o.placement_clearance = mo.placement_clearance();
   s->tick_ = m.tick();
   if (o.tick_hz != 2 && o.tick_hz != 10) return bad(absl::StrCat("tick_hz ", o.tick_hz, " (only 2 or 10)"));
   if (s->tick_ < 0) return bad("negative tick");

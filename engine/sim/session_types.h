@@ -38,6 +38,7 @@ struct SessionOptions {
   // paper samples every token but motion (docs/model.md, "Full mode"; "Scenario generation" measures other values).
   double placement_temperature = 1.0;
   double placement_top_p = 1.0;
+  double placement_clearance = 0.0;  // metres a new agent's box keeps from every other box (0: no overlap)
   // Full mode: the agents to place per type (vehicles, pedestrians, cyclists), the Scenario Generation Challenge's
   // input. Empty: the model decides how many (its end-of-agents head). Given: the scenario's SDC (valid at the
   // current frame) is taken from the log at the first step, as the challenge gives the ego's history, and is driven

@@ -126,6 +126,7 @@ int run_scenario_gen(ScenarioGenRun& run) {
     j["roi_radius"] = run.options.session.roi_radius;
     j["placement_temperature"] = run.options.session.placement_temperature;
     j["placement_top_p"] = run.options.session.placement_top_p;
+    j["placement_clearance"] = run.options.session.placement_clearance;
     j["history"] = scenario_gen_history_name(run.options.history);
   }
   if (run.options.policy == ScenarioGenPolicy::placement) j["seed"] = run.options.session.seed;

@@ -98,6 +98,25 @@ TEST(ScenarioGenMetric, PoolingIgnoresWhichGeneratedAgentWearsWhichId) {
   EXPECT_DOUBLE_EQ(a.likelihood[kLinearSpeed], b.likelihood[kLinearSpeed]);
 }
 
+TEST(ScenarioGenScenes, ClearHistoryHoldsAnAgentWhereItsStepBackWouldOverlap) {
+  // Frame 3 is the current one. A (settled, e.g. the SDC's log) stands at x = 0; B, 7 m ahead and moving at 20 m/s,
+  // would pass through it going back (x = 5, 3, 1 at frames 2, 1, 0; 4 m boxes); C, far off, moves freely.
+  auto object = [](std::vector<double> xs, double y) {
+    SceneObject o;
+    for (double x : xs) o.states.push_back({x, y, 0, 0, 4.0, 2.0, 1.5, true});
+    return o;
+  };
+  JointScene scene;
+  scene.objects = {object({0, 0, 0, 0}, 0), object({1, 3, 5, 7}, 0), object({-30, -20, -10, 0}, 50)};
+  clear_history(scene, 3, {1, 2});
+  // Frame 2 (x = 5) is clear of A; frame 1 (x = 3) would overlap it, so B stood at x = 5 from there back.
+  EXPECT_EQ(scene.objects[1].states[2].x, 5.0);
+  EXPECT_EQ(scene.objects[1].states[1].x, 5.0);
+  EXPECT_EQ(scene.objects[1].states[0].x, 5.0);
+  EXPECT_EQ(scene.objects[2].states[0].x, -30.0);  // C untouched
+  EXPECT_EQ(scene.objects[0].states[0].x, 0.0);    // the settled object too
+}
+
 TEST(ScenarioGenCounts, ParsedAndRefusedByName) {
   auto c = parse_agent_counts("12,3,0");
   ASSERT_TRUE(c.ok()) << c.status();
