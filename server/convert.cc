@@ -59,6 +59,7 @@ absl::StatusOr<SessionOptions> options_from_proto(const pb::CreateSessionRequest
   if (r.roi_radius() != 0) o.roi_radius = r.roi_radius();
   if (r.max_agents() != 0) o.max_agents = r.max_agents();
   o.densify_target = r.densify_target();
+  o.agent_counts.assign(r.agent_counts().begin(), r.agent_counts().end());
   o.tick_hz = r.tick_hz() == 0 ? 2 : r.tick_hz();
   return o;
 }

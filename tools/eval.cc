@@ -28,6 +28,7 @@
 #include "tools/eval/eval_compare.h"
 #include "tools/eval/eval_plots.h"
 #include "tools/eval/eval_report.h"
+#include "tools/eval/eval_scenario_gen.h"
 #include "tools/shared_flags.h"
 
 ABSL_FLAG(std::string, data, "",
@@ -55,6 +56,24 @@ ABSL_FLAG(std::string, submission, "",
           "must be exactly those of --data (the logs), every rollout must hold every agent valid at the current "
           "frame over the scenario's future; --sdc model only");
 
+ABSL_FLAG(std::string, protocol, "wosac",
+          "wosac: the Sim Agents metrics (the log's agents resimulated); scenario-gen: the Scenario Generation "
+          "Challenge (full mode given the log's counts per type, the metric pooled over objects, the initial-state "
+          "MMD beside it; --baseline log|placement)");
+
+ABSL_FLAG(double, placement_temperature, ss::SessionOptions{}.placement_temperature,
+          "--protocol scenario-gen: the temperature of a new agent's tokens (type, map segment, relative state)");
+ABSL_FLAG(double, placement_top_p, ss::SessionOptions{}.placement_top_p,
+          "--protocol scenario-gen: the nucleus of a new agent's tokens");
+ABSL_FLAG(double, placement_clearance, ss::SessionOptions{}.placement_clearance,
+          "--protocol scenario-gen: metres a new agent's box keeps from every other box when placed");
+ABSL_FLAG(std::string, history, "constant-velocity",
+          "--protocol scenario-gen: the generated agents' second of history: constant-velocity (back along their "
+          "generated velocity) or clear (the same, held where a step back would overlap another box)");
+ABSL_FLAG(double, roi_radius, ss::SessionOptions{}.roi_radius,
+          "--protocol scenario-gen: metres around the SDC where agents are placed (the session's region; the "
+          "placement baseline's too)");
+
 namespace ss::cli {
 namespace {
 
@@ -80,7 +99,18 @@ constexpr const char* kUsage =
     "  --wosac-submission DIR: motion mode or --baseline cv, --sdc model; 32 scenarios per shard. The rollouts are\n"
     "  scored as the files hold them (float32), so scoring the files gives the same numbers. A scenario that ends at\n"
     "  its current frame (the challenge's test set) is rolled out for 80 frames and written, not scored.\n"
-    "  --compare: --seed defaults to 1; --json OUT writes the comparison too.\n";
+    "  --compare: --seed defaults to 1; --json OUT writes the comparison too.\n"
+    "       scenestreamer eval --protocol scenario-gen --data ... --json OUT.json ([--model W] [--mode full] |\n"
+    "                          --baseline log|placement | --submission FILE_OR_DIR) [--rollouts K] [--seed S]\n"
+    "                          [--top-p P] [--temperature T] [--roi-radius R] [--placement-temperature T]\n"
+    "                          [--placement-top-p P] [--placement-clearance M] [--history constant-velocity|clear]\n"
+    "                          [--wosac-submission DIR]\n"
+    "  The Scenario Generation Challenge (docs/evaluation.md): the model in full mode places the log's number of\n"
+    "  vehicles, pedestrians and cyclists around the SDC (whose history is the only one given) and generates every\n"
+    "  frame; scored by the challenge's metric (the sim-agents features pooled over objects, every frame) with the\n"
+    "  initial-state MMD, the count check and the overlap check. --baseline log: the log (the oracle); placement:\n"
+    "  the counts at random lane / sidewalk points at a log speed, constant velocity. --wosac-submission writes the\n"
+    "  scenes in the challenge's format (every frame, box, type); --submission scores such files.\n";
 
 int fail(const std::string& msg) {
   spdlog::error("eval: {}", msg);
@@ -113,6 +143,81 @@ int compare_main(const CommandLine& line) {
   return 0;
 }
 
+int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& paths) {
+  ScenarioGenRun run;
+  ScenarioGenOptions& o = run.options;
+  const std::string other = line.first_given({flag(FLAGS_sdc), flag(FLAGS_ego), flag(FLAGS_plots)});
+  if (!other.empty()) return fail("--protocol scenario-gen: " + other + " does not apply");
+  if (line.has(FLAGS_mode) && absl::GetFlag(FLAGS_mode) != "full")
+    return fail("--protocol scenario-gen generates the scene: --mode full only");
+  const std::string model_flag = line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p),
+                                                   flag(FLAGS_temperature), flag(FLAGS_motion_reject),
+                                                   flag(FLAGS_roi_radius), flag(FLAGS_placement_temperature),
+                                                   flag(FLAGS_placement_top_p), flag(FLAGS_placement_clearance)});
+  if (line.has(FLAGS_baseline)) {
+    const std::string b = absl::GetFlag(FLAGS_baseline);
+    if (b == "log") o.policy = ScenarioGenPolicy::log_oracle;
+    else if (b == "placement") o.policy = ScenarioGenPolicy::placement;
+    else return fail("--protocol scenario-gen: --baseline '" + b + "' is not log or placement");
+    if (!model_flag.empty() && model_flag != "--roi-radius") return fail("--baseline runs without a model: drop " + model_flag);
+  }
+  if (line.has(FLAGS_submission)) {
+    if (line.has(FLAGS_baseline) || !model_flag.empty() || line.has(FLAGS_rollouts) || line.has(FLAGS_seed) ||
+        line.has(FLAGS_wosac_submission))
+      return fail("--submission scores the scenes it holds: no policy, rollouts, seed or --wosac-submission");
+    o.policy = ScenarioGenPolicy::submission;
+    run.submission_in = absl::GetFlag(FLAGS_submission);
+  }
+  o.rollouts = absl::GetFlag(FLAGS_rollouts);
+  if (o.rollouts < 1 || o.rollouts > 1024) return fail("--rollouts must be in 1..1024");
+  o.session.mode = SessionMode::full;
+  o.session.seed = absl::GetFlag(FLAGS_seed);
+  o.session.top_p = absl::GetFlag(FLAGS_top_p);
+  o.session.temperature = absl::GetFlag(FLAGS_temperature);
+  o.session.motion_reject = absl::GetFlag(FLAGS_motion_reject);
+  o.session.roi_radius = absl::GetFlag(FLAGS_roi_radius);
+  o.session.placement_temperature = absl::GetFlag(FLAGS_placement_temperature);
+  o.session.placement_top_p = absl::GetFlag(FLAGS_placement_top_p);
+  o.session.placement_clearance = absl::GetFlag(FLAGS_placement_clearance);
+  const std::string history = absl::GetFlag(FLAGS_history);
+  if (history == "clear") o.history = ScenarioGenHistory::clear;
+  else if (history != "constant-velocity") return fail("--history '" + history + "' is not constant-velocity or clear");
+  if (line.has(FLAGS_history) && o.policy != ScenarioGenPolicy::model)
+    return fail("--history shapes the model's generated agents: it needs the model policy");
+  if (!(o.session.roi_radius > 0) || !std::isfinite(o.session.roi_radius)) return fail("--roi-radius must be positive");
+  o.placement_radius = o.session.roi_radius;
+  run.threads = absl::GetFlag(FLAGS_threads);
+  if (run.threads == 0) run.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (run.threads < 1 || run.threads > 1024) return fail("--threads must be in 1..1024");
+  run.json_out = absl::GetFlag(FLAGS_eval_json);
+  if (line.has(FLAGS_wosac_submission)) {
+    run.submission_out = absl::GetFlag(FLAGS_wosac_submission);
+    o.submission_precision = true;
+  }
+  if (line.has(FLAGS_submission_metadata)) {
+    if (!line.has(FLAGS_wosac_submission)) return fail("--submission-metadata goes with --wosac-submission");
+    auto m = read_submission_metadata(absl::GetFlag(FLAGS_submission_metadata));
+    if (!m.ok()) return fail(std::string(m.status().message()));
+    run.metadata = std::move(*m);
+  }
+  enable_flush_to_zero();
+  if (o.policy == ScenarioGenPolicy::model) {
+    auto path = model_path();
+    if (!path.ok()) return fail(std::string(path.status().message()));
+    auto weights = load_weights(*path);
+    if (!weights.ok()) return fail(std::string(weights.status().message()));
+    auto m = Model::create(std::move(*weights));
+    if (!m.ok()) return fail(absl::StrCat(*path, ": ", m.status().message()));
+    run.model_path = *path;
+    run.model = *m;
+  }
+  auto scenarios = read_scenarios(paths);
+  if (!scenarios.ok()) return fail(std::string(scenarios.status().message()));
+  if (scenarios->empty()) return fail(absl::StrCat("no scenarios found in ", paths[0], paths.size() > 1 ? " ..." : ""));
+  for (Scenario& s : *scenarios) run.scenarios.push_back(std::make_shared<const Scenario>(std::move(s)));
+  return run_scenario_gen(run);
+}
+
 }  // namespace
 
 int eval_main(int argc, char** argv) {
@@ -130,6 +235,9 @@ int eval_main(int argc, char** argv) {
   // --data takes the paths after it up to the next flag (the parser leaves them positional).
   std::vector<std::string> paths = {absl::GetFlag(FLAGS_data)};
   paths.insert(paths.end(), line.positional().begin(), line.positional().end());
+  const std::string protocol = absl::GetFlag(FLAGS_protocol);
+  if (protocol == "scenario-gen") return scenario_gen_main(line, paths);
+  if (protocol != "wosac") return fail("--protocol '" + protocol + "' is not wosac or scenario-gen");
 
   EvalOptions options;
   EvalRunInfo run;

@@ -5,6 +5,7 @@
 #include "absl/flags/flag.h"
 #include "offline/eval/evaluate.h"
 #include "offline/eval/model_rollout.h"
+#include "offline/eval/scenario_gen.h"
 #include "engine/model/linalg.h"
 #include "engine/offline.h"
 #include "engine/sim/rollout_export.h"
@@ -20,6 +21,9 @@ ABSL_FLAG(int, rollout, 0,
           "K: with --seed S, the session's seed is the one `eval --seed S` gives the scenario's K-th rollout");
 ABSL_FLAG(int, max_agents, ss::SessionOptions{}.max_agents, "the cap on agents alive at once");
 ABSL_FLAG(int, densify_target, ss::SessionOptions{}.densify_target, "densify mode: agents to reach at the first step");
+ABSL_FLAG(std::string, agent_counts, "",
+          "full mode: the agents to place, V,P,C (vehicles, pedestrians, cyclists), or 'log' for the scenario's own "
+          "(every agent valid at its current frame but the SDC); the SDC is taken from the log");
 
 namespace ss::cli {
 namespace {
@@ -29,6 +33,7 @@ constexpr const char* kUsage =
     "                              [--mode motion|full|densify|log|idm] [--sdc model|log] [--steps N] [--seed S] [--rollout K]\n"
     "                              [--index I]\n"
     "                              [--top-p P] [--temperature T] [--motion-reject=false] [--max-agents N] [--densify-target N]\n"
+    "                              [--agent-counts V,P,C|log]\n"
     "  Rolls the scenario out from its current step for N model steps (0.5 s each; default: to the scenario's last\n"
     "  frame, 16 steps for a 91-frame WOMD scenario, 38 for a 20 s one; more steps go on past the log) and writes it\n"
     "  as a complete 10 Hz WOMD Scenario: the log's frames up to its current frame as logged (same id, current index,\n"
@@ -40,7 +45,10 @@ constexpr const char* kUsage =
     "  --seed S --rollout K: the session's seed is the one `eval --seed S` gives the scenario's K-th rollout, so\n"
     "        simulate reproduces eval's rollouts one by one (and `convert --wosac-submission` turns them into the\n"
     "        submission `eval --wosac-submission` writes).\n"
-    "  --mode log|idm: the rule baselines; they read the scenario's logged future (the model modes never do).\n";
+    "  --mode log|idm: the rule baselines; they read the scenario's logged future (the model modes never do).\n"
+    "  --agent-counts (full mode): exactly V vehicles, P pedestrians and C cyclists placed at the first step around\n"
+    "        the SDC, which is taken from the log (the Scenario Generation Challenge's input); none joins or retires\n"
+    "        later. log: the scenario's own counts.\n";
 
 int fail(const std::string& msg) {
   spdlog::error("simulate: {}", msg);
@@ -88,6 +96,18 @@ int simulate_main(int argc, char** argv) {
     return fail("--index " + std::to_string(index) + " is outside the file's " + std::to_string(scenarios->size()) +
                 " scenarios");
   auto scenario = std::make_shared<const Scenario>((*scenarios)[index]);
+  if (line.has(FLAGS_agent_counts)) {
+    const std::string counts = absl::GetFlag(FLAGS_agent_counts);
+    if (o.mode != SessionMode::full) return fail("--agent-counts goes with --mode full");
+    if (counts == "log") {
+      const std::array<int, 3> c = scenario_gen_counts(*scenario);
+      o.agent_counts.assign(c.begin(), c.end());
+    } else {
+      auto c = parse_agent_counts(counts);
+      if (!c.ok()) return fail("--agent-counts: " + std::string(c.status().message()));
+      o.agent_counts.assign(c->begin(), c->end());
+    }
+  }
   MapCache maps(*model);
   auto map = maps.get(*scenario);
   if (!map.ok()) return fail(std::string(map.status().message()));

@@ -38,11 +38,12 @@ std::optional<SessionMode> session_mode_from_name(const std::string& name) {
 namespace {
 
 constexpr int kRejectTries = 6;             // paper appendix D: resample an overlapping new agent at most 6 times
-// A new agent's tokens (type, end of agents, map segment, relative state) are drawn from the plain softmax, as the
-// paper samples every token but motion; the session's temperature and top-p shape motion and lights. At the
-// session's 0.7 the end of agents came too rarely once full mode began at the current step (165 % of the log's
-// agents on the val scenarios; 80 % at 1.0, with the placed vehicles' offroad share 0.468 against the log's 0.466).
-constexpr double kPlacementTemperature = 1.0;
+constexpr int kCountTries = 50;             // agent_counts: redraws of an agent that found no free place
+// A new agent's tokens (type, end of agents, map segment, relative state) are drawn at options.placement_temperature
+// and placement_top_p, the plain softmax by default, as the paper samples every token but motion; the session's
+// temperature and top-p shape motion and lights. At the session's 0.7 the end of agents came too rarely once full
+// mode began at the current step (165 % of the log's agents on the val scenarios; 80 % at 1.0, with the placed
+// vehicles' offroad share 0.468 against the log's 0.466).
 constexpr double kMaxStepDistance = 50.0;   // metres in one 0.5 s step (100 m/s): more is a teleport (StateForce)
 constexpr double kMaxSpeed = 100.0;         // m/s
 constexpr double kRejectBrake = 6.0;        // m/s^2: the braking motion reject sampling leaves room for
@@ -372,11 +373,13 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
 
 Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, const InjectRequest* req, int order,
                                         int64_t* new_id) {
-  const double t = kPlacementTemperature;
+  const double t = options_.placement_temperature, p = options_.placement_top_p;
   if (static_cast<int>(agents_.size()) >= options_.max_agents) return NewAgent::ended;
-  if (!force_continue) {
+  const bool by_count = !quota_.empty();
+  if (by_count && std::all_of(quota_.begin(), quota_.end(), [](int n) { return n <= 0; })) return NewAgent::ended;
+  if (!force_continue && !by_count) {
     const Mat end = model_->end_of_agents_logits(h_last);
-    if (sample_token({end.data(), 2}, t, 1.0, rng_) == 1) return NewAgent::ended;
+    if (sample_token({end.data(), 2}, t, p, rng_) == 1) return NewAgent::ended;
   }
   const int slot = allocate_slot();
   if (slot < 0) return NewAgent::ended;
@@ -396,8 +399,16 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
   soa.intra_index = 4 * order;
   tok = {soa};
   const Mat h_soa = decode(tok);
-  a.type = req && req->type ? *req->type
-                            : sample_token({model_->agent_type_logits(h_soa).data(), kAgentTypes}, t, 1.0, rng_);
+  if (req && req->type) {
+    a.type = *req->type;
+  } else {
+    Mat type_logits = model_->agent_type_logits(h_soa);
+    // By count: only the types still wanted (the model's distribution over them, renormalised).
+    if (by_count)
+      for (int k = 0; k < kAgentTypes; ++k)
+        if (quota_[k] <= 0) type_logits(0, k) = -INFINITY;
+    a.type = sample_token({type_logits.data(), kAgentTypes}, t, p, rng_);
+  }
   DecoderToken type = soa;
   type.kind = TokenKind::type;
   type.agent_type = a.type;
@@ -443,7 +454,7 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
     for (int attempt = 0; attempt < kRejectTries && !placed; ++attempt) {
       const int cache_before_ms = cache_.size();
       const size_t replay_before_ms = replay_.size();
-      seg = sample_token({pointer.data(), static_cast<size_t>(pointer.cols())}, t, 1.0, rng_);
+      seg = sample_token({pointer.data(), static_cast<size_t>(pointer.cols())}, t, p, rng_);
       DecoderToken ms = type;
       ms.kind = TokenKind::map_segment;
       ms.intra_index = 4 * order + 2;
@@ -455,13 +466,16 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
       RsHead head = model_->rs_begin(h_ms);
       for (int f = 0; f < kRsFields; ++f) {
         const Vec logits = model_->rs_next(head, f == 0 ? 0 : bins[f - 1]);
-        bins[f] = sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, 1.0, rng_);
+        bins[f] = sample_token({logits.data(), static_cast<size_t>(logits.size())}, t, p, rng_);
       }
       RelativeState rel;
       for (int f = 0; f < kRsFields; ++f) rel[f] = state_bin_value(f, bins[f]);
       a.state = global_state(rel, map_->segments[seg].pose);
+      // Clear of every box, by options.placement_clearance metres on each side (0: not overlapping).
+      Box mine = box_of(a.state);
+      mine.length += 2 * options_.placement_clearance, mine.width += 2 * options_.placement_clearance;
       placed = std::none_of(agents_.begin(), agents_.end(),
-                            [&](const Agent& o) { return boxes_overlap(box_of(o.state), box_of(a.state)); });
+                            [&](const Agent& o) { return boxes_overlap(box_of(o.state), mine); });
       if (!placed) undo_to(cache_before_ms, replay_before_ms);
     }
     if (!placed) {
@@ -540,6 +554,27 @@ absl::Status Session::add_agents(bool allow_new, int force_new, const std::vecto
       }
     }
   };
+  if (!quota_.empty()) {
+    // By count: every requested agent is placed. A draw that finds no free place is redrawn (its type and segment
+    // too); only a region with no room left for kCountTries draws in a row is an error.
+    int wanted = 0;
+    for (int n : quota_) wanted += n;
+    for (int placed = 0, dropped = 0; placed < wanted;) {
+      int64_t id = 0;
+      const NewAgent r = sample_agent(last_group_output_, true, nullptr, static_cast<int>(agents_.size()), &id);
+      if (r == NewAgent::placed) {
+        --quota_[agents_.back().type];
+        ++placed;
+        dropped = 0;
+        continue;
+      }
+      if (r == NewAgent::ended || ++dropped >= kCountTries)
+        return absl::ResourceExhaustedError(absl::StrCat(
+            "agent_counts: placed ", placed, " of the ", wanted, " agents requested; no free place for another within ",
+            options_.roi_radius, " m after ", kCountTries, " draws (", kRejectTries, " tries each)"));
+    }
+    return absl::OkStatus();
+  }
   fill(true, force_new);
   if (allow_new) fill(false, std::numeric_limits<int>::max());
   return absl::OkStatus();
@@ -725,7 +760,8 @@ absl::StatusOr<StepResult> Session::step_checked(const std::vector<ControlInput>
   // Agents that left the region of interest retire; their slots are recycled once out of the window.
   const Vec2 centre = roi_centre();
   for (auto it = agents_.begin(); it != agents_.end();) {
-    if (!it->controlled && distance({it->state.x, it->state.y}, centre) > options_.roi_radius) {
+    // Placed by count, the scene is the requested agents throughout: none retires.
+    if (!it->controlled && options_.agent_counts.empty() && distance({it->state.x, it->state.y}, centre) > options_.roi_radius) {
       left_.push_back(it->id);
       released_slots_.push_back({it->slot, step_});
       it = agents_.erase(it);
@@ -734,7 +770,8 @@ absl::StatusOr<StepResult> Session::step_checked(const std::vector<ControlInput>
     }
   }
   trim_replay();
-  if (auto st = decode_step(true, options_.mode != SessionMode::motion, 0, {}, nullptr); !st.ok()) return st;
+  const bool allow_new = options_.mode != SessionMode::motion && options_.agent_counts.empty();
+  if (auto st = decode_step(true, allow_new, 0, {}, nullptr); !st.ok()) return st;
   return current();
 }
 

@@ -191,6 +191,8 @@ class Session {
   Mat last_group_output_;            // decoder output of the group's last token (SOS or the last RS)
   int eos_cache_size_ = 0;           // cache size before the current step's EOS and motion batch
   Probe* probe_ = nullptr;
+  // While the first step places agents by count (options.agent_counts): how many of each type are still to place.
+  std::vector<int> quota_;
   std::shared_ptr<const std::vector<LoggedPath>> paths_;  // rule modes: each track's logged path, by track index
 };
 

@@ -29,6 +29,33 @@ absl::Status check_options(const SessionOptions& o, const ModelConfig& c) {
     return absl::InvalidArgumentError(absl::StrCat("tick_hz ", o.tick_hz, ": only 2 or 10"));
   if (o.densify_target < 0 || o.densify_target > o.max_agents)
     return absl::InvalidArgumentError(absl::StrCat("options.densify_target ", o.densify_target, " is outside 0..max_agents"));
+  if (!(o.placement_temperature > 0) || !std::isfinite(o.placement_temperature))
+    return absl::InvalidArgumentError(absl::StrCat("options.placement_temperature ", o.placement_temperature,
+                                                   " must be positive"));
+  if (!(o.placement_top_p > 0 && o.placement_top_p <= 1))
+    return absl::InvalidArgumentError(absl::StrCat("options.placement_top_p ", o.placement_top_p, " must be in (0, 1]"));
+  if (!(o.placement_clearance >= 0 && o.placement_clearance <= 10))
+    return absl::InvalidArgumentError(absl::StrCat("options.placement_clearance ", o.placement_clearance,
+                                                   " is outside 0..10 m"));
+  if (!o.agent_counts.empty()) {
+    if (o.mode != SessionMode::full)
+      return absl::InvalidArgumentError(absl::StrCat("options.agent_counts: only full mode places agents by count (mode ",
+                                                     session_mode_name(o.mode), ")"));
+    if (o.agent_counts.size() != kAgentTypes)
+      return absl::InvalidArgumentError(absl::StrCat("options.agent_counts has ", o.agent_counts.size(),
+                                                     " entries; it needs ", kAgentTypes,
+                                                     " (vehicles, pedestrians, cyclists)"));
+    int total = 0;
+    for (size_t t = 0; t < o.agent_counts.size(); ++t) {
+      if (o.agent_counts[t] < 0 || o.agent_counts[t] > o.max_agents)
+        return absl::InvalidArgumentError(absl::StrCat("options.agent_counts[", t, "] ", o.agent_counts[t],
+                                                       " is outside 0..max_agents (", o.max_agents, ")"));
+      total += o.agent_counts[t];
+    }
+    if (total > o.max_agents)
+      return absl::InvalidArgumentError(absl::StrCat("options.agent_counts sum to ", total, ", more than max_agents (",
+                                                     o.max_agents, ")"));
+  }
   return absl::OkStatus();
 }
 
@@ -80,6 +107,20 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
   const size_t num_controlled = chosen.size();
   if (static_cast<int>(num_controlled) > options.max_agents)
     return absl::InvalidArgumentError("more controlled agents than options.max_agents");
+  // Placement by count: the ego's state is given (the SDC's, from the log), the model drives it unless controlled.
+  const bool by_count = !options.agent_counts.empty();
+  if (by_count && scenario->sdc_track_index >= 0 && scenario->tracks[scenario->sdc_track_index].states[now_frame].valid &&
+      model_type(scenario->tracks[scenario->sdc_track_index].type) >= 0 &&
+      std::find(chosen.begin(), chosen.end(), scenario->sdc_track_index) == chosen.end())
+    chosen.push_back(scenario->sdc_track_index);
+  if (by_count) {
+    int total = static_cast<int>(chosen.size());
+    for (int n : options.agent_counts) total += n;
+    if (total > options.max_agents)
+      return absl::InvalidArgumentError(absl::StrCat("options.agent_counts and the ", chosen.size(),
+                                                     " agents taken from the log make ", total,
+                                                     ", more than max_agents (", options.max_agents, ")"));
+  }
 
   // Lights: the lanes with a signal state at the current frame, by lane id, anchored on their lane's segment.
   for (const TokenLight& tl : scenario_lights(*scenario, now_frame, s->map_->segments, s->map_->index,
@@ -188,10 +229,12 @@ absl::StatusOr<std::unique_ptr<Session>> Session::create(std::shared_ptr<const M
     s->trim_replay();
     const bool now = step == t0;
     const bool sample_new = now && options.mode == SessionMode::full;
+    if (sample_new && by_count) s->quota_.assign(options.agent_counts.begin(), options.agent_counts.end());
     const int force_new = now && options.mode == SessionMode::densify
                               ? std::max(0, options.densify_target - static_cast<int>(s->agents_.size()))
                               : 0;
     if (auto st = s->decode_step(now, sample_new, force_new, {}, nullptr); !st.ok()) return st;
+    s->quota_.clear();
   }
   return s;
 }

@@ -81,6 +81,10 @@ std::string Session::save() const {
   o->set_control_sdc(options_.control_sdc);
   o->set_tick_hz(options_.tick_hz);
   o->set_motion_reject(options_.motion_reject);
+  for (int n : options_.agent_counts) o->add_agent_counts(n);
+  o->set_placement_temperature(options_.placement_temperature);
+  o->set_placement_top_p(options_.placement_top_p);
+  o->set_placement_clearance(options_.placement_clearance);
   m.set_tick(tick_);
   for (auto [poses, out] : {std::pair{&latest_pose_, m.mutable_latest_pose()},
                             std::pair{&step_controls_, m.mutable_step_controls()}}) {
@@ -192,6 +196,10 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   o.control_sdc = mo.control_sdc();
   o.tick_hz = mo.tick_hz();
   o.motion_reject = mo.motion_reject();
+  o.agent_counts.assign(mo.agent_counts().begin(), mo.agent_counts().end());
+  o.placement_temperature = mo.has_placement_temperature() ? mo.placement_temperature() : 1.0;
+  o.placement_top_p = mo.has_placement_top_p() ? mo.placement_top_p() : 1.0;
+  o.placement_clearance = mo.placement_clearance();
   s->tick_ = m.tick();
   if (o.tick_hz != 2 && o.tick_hz != 10) return bad(absl::StrCat("tick_hz ", o.tick_hz, " (only 2 or 10)"));
   if (s->tick_ < 0) return bad("negative tick");

@@ -34,6 +34,18 @@ struct SessionOptions {
   std::vector<int32_t> controlled_ids;  // track ids driven by the caller; empty: the SDC (if the scenario names one)
   bool control_sdc = true;     // with controlled_ids empty: false lets the model drive every agent, the SDC too
   int densify_target = 0;      // densify: agents to reach at the first step
+  // A new agent's tokens (type, end of agents, map segment, relative state): the plain softmax by default, as the
+  // paper samples every token but motion (docs/model.md, "Full mode"; "Scenario generation" measures other values).
+  double placement_temperature = 1.0;
+  double placement_top_p = 1.0;
+  double placement_clearance = 0.0;  // metres a new agent's box keeps from every other box (0: no overlap)
+  // Full mode: the agents to place per type (vehicles, pedestrians, cyclists), the Scenario Generation Challenge's
+  // input. Empty: the model decides how many (its end-of-agents head). Given: the scenario's SDC (valid at the
+  // current frame) is taken from the log at the first step, as the challenge gives the ego's history, and is driven
+  // by the model after it unless it is controlled; exactly these many agents of each type are placed around it (the
+  // end-of-agents and type heads masked); none joins or retires later, so the scene holds the requested agents
+  // throughout.
+  std::vector<int> agent_counts;
   bool motion_reject = true;   // redraw a control that runs an agent into another or a vehicle off the road
   int tick_hz = 2;             // ticks per second: 2 (a tick is a model step) or 10 (five ticks per model step)
   bool operator==(const SessionOptions&) const = default;

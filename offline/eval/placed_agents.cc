@@ -9,10 +9,7 @@
 #include "engine/tokens/fidelity.h"
 
 namespace ss {
-namespace {
 
-// The z of the map point nearest (x, y) in the plane; NaN for a map without points. A linear scan: a few thousand
-// points times the agents of one step.
 double ground_z(const Scenario& map, double x, double y) {
   double best = INFINITY, z = std::numeric_limits<double>::quiet_NaN();
   for (const MapFeature& f : map.map_features)
@@ -23,7 +20,6 @@ double ground_z(const Scenario& map, double x, double y) {
   return z;
 }
 
-}  // namespace
 
 PlacedAgents placed_agents(std::span<const InitialAgent> agents, std::span<const double> z, const Scenario& map,
                            const RoadEdges& edges) {

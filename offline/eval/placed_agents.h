@@ -10,6 +10,10 @@
 
 namespace ss {
 
+// The z of the map point nearest (x, y) in the plane; NaN for a map without points. A linear scan: a few thousand
+// points times the agents of one step. Where an agent placed in the plane (the model's) stands.
+double ground_z(const Scenario& map, double x, double y);
+
 struct PlacedAgents {
   int agents = 0;            // vehicles, pedestrians and cyclists
   int vehicles = 0;          // of which vehicles, scored for offroad (0 when the map has no road edge)

@@ -35,7 +35,7 @@ std::string shard_suffix(int shard, int shards) {
 }
 
 bool all_finite(const SimulatedTrajectory& t) {
-  for (const std::vector<float>* v : {&t.x, &t.y, &t.z, &t.heading})
+  for (const std::vector<float>* v : {&t.x, &t.y, &t.z, &t.heading, &t.length, &t.width, &t.height})
     for (float f : *v)
       if (!std::isfinite(f)) return false;
   return true;
@@ -210,6 +210,96 @@ absl::StatusOr<std::vector<JointScene>> scenes_from_rollouts(const Scenario& s, 
   return out;
 }
 
+absl::StatusOr<ScenarioRollouts> scenegen_rollouts_from_scenes(const Scenario& s, const std::vector<JointScene>& scenes) {
+  const std::vector<int> agents = sim_agent_tracks(s);
+  ScenarioRollouts out;
+  out.scenario_id = s.id;
+  for (size_t r = 0; r < scenes.size(); ++r) {
+    const JointScene& scene = scenes[r];
+    if (scene.objects.size() != agents.size() || scene.num_frames() != s.num_frames())
+      return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": ", scene.objects.size(),
+                                                     " objects over ", scene.num_frames(), " frames, not the ",
+                                                     agents.size(), " sim agents over ", s.num_frames()));
+    std::vector<SimulatedTrajectory> joint;
+    for (size_t k = 0; k < agents.size(); ++k) {
+      const SceneObject& o = scene.objects[k];
+      if (o.id != s.tracks[agents[k]].id)
+        return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": object ", k, " is ", o.id,
+                                                       ", not sim agent ", s.tracks[agents[k]].id));
+      SimulatedTrajectory t;
+      t.object_id = static_cast<int32_t>(o.id);
+      t.object_type = static_cast<int32_t>(o.type);
+      for (size_t f = 0; f < o.states.size(); ++f) {
+        const BoxState& b = o.states[f];
+        if (!b.valid)
+          return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": object ", o.id,
+                                                         " has no state at frame ", f,
+                                                         ", and a scenario-generation submission holds every frame"));
+        for (auto [v, x] : {std::pair{&t.x, b.x}, {&t.y, b.y}, {&t.z, b.z}, {&t.heading, b.heading},
+                            {&t.length, b.length}, {&t.width, b.width}, {&t.height, b.height}})
+          v->push_back(static_cast<float>(x));
+        t.valid.push_back(1);
+      }
+      joint.push_back(std::move(t));
+    }
+    out.joint_scenes.push_back(std::move(joint));
+  }
+  return out;
+}
+
+absl::StatusOr<std::vector<JointScene>> scenegen_scenes_from_rollouts(const Scenario& s, const ScenarioRollouts& r,
+                                                                      const std::string& where) {
+  const int frames = s.num_frames();
+  const std::vector<int> agents = sim_agent_tracks(s);
+  std::map<int64_t, size_t> index;
+  for (size_t k = 0; k < agents.size(); ++k) index[s.tracks[agents[k]].id] = k;
+  if (r.joint_scenes.empty()) return absl::InvalidArgumentError(absl::StrCat(where, ": scenario ", s.id, " has no rollout"));
+  std::vector<JointScene> out;
+  for (size_t n = 0; n < r.joint_scenes.size(); ++n) {
+    const std::string at = absl::StrCat(where, ": scenario ", s.id, " rollout ", n);
+    JointScene scene;
+    scene.objects.resize(agents.size());
+    std::vector<bool> seen(agents.size(), false);
+    for (const SimulatedTrajectory& t : r.joint_scenes[n]) {
+      auto it = index.find(t.object_id);
+      if (it == index.end())
+        return absl::InvalidArgumentError(absl::StrCat(
+            at, ": object ", t.object_id,
+            track_by_id(s, t.object_id) ? " is not valid at the current frame, so it is not a sim agent"
+                                        : " is not in the scenario"));
+      if (seen[it->second])
+        return absl::InvalidArgumentError(absl::StrCat(at, ": object ", t.object_id, " is given twice"));
+      seen[it->second] = true;
+      const std::pair<const char*, size_t> fields[] = {
+          {"center_x", t.x.size()},       {"center_y", t.y.size()},     {"center_z", t.z.size()},
+          {"heading", t.heading.size()},  {"length", t.length.size()},  {"width", t.width.size()},
+          {"height", t.height.size()},    {"valid", t.valid.size()}};
+      for (const auto& [name, size] : fields)
+        if (static_cast<int>(size) != frames)
+          return absl::InvalidArgumentError(absl::StrCat(at, ": object ", t.object_id, " has ", size, " ", name,
+                                                         " values; a scenario-generation trajectory has one per frame (",
+                                                         frames, ")"));
+      if (!all_finite(t))
+        return absl::InvalidArgumentError(absl::StrCat(at, ": object ", t.object_id, " has a non-finite value"));
+      const ObjectType type = static_cast<ObjectType>(t.object_type);
+      if (type != ObjectType::vehicle && type != ObjectType::pedestrian && type != ObjectType::cyclist)
+        return absl::InvalidArgumentError(absl::StrCat(at, ": object ", t.object_id, " has object_type ", t.object_type,
+                                                       "; a generated agent is a vehicle (1), pedestrian (2) or cyclist (3)"));
+      SceneObject& o = scene.objects[it->second];
+      o.id = t.object_id;
+      o.type = type;
+      for (int f = 0; f < frames; ++f)
+        o.states.push_back({t.x[f], t.y[f], t.z[f], t.heading[f], t.length[f], t.width[f], t.height[f], true});
+    }
+    for (size_t k = 0; k < agents.size(); ++k)
+      if (!seen[k])
+        return absl::InvalidArgumentError(absl::StrCat(at, ": sim agent ", s.tracks[agents[k]].id,
+                                                       " (valid at the current frame) is missing"));
+    out.push_back(std::move(scene));
+  }
+  return out;
+}
+
 std::vector<std::string> challenge_problems(const std::vector<ScenarioRollouts>& rollouts,
                                             const std::vector<const Scenario*>& scenarios,
                                             const SubmissionMetadata& m) {
@@ -282,6 +372,11 @@ absl::Status write_submission_shard(const std::string& path, const std::vector<S
         pt->mutable_center_z()->Add(t.z.begin(), t.z.end());
         pt->mutable_heading()->Add(t.heading.begin(), t.heading.end());
         pt->set_object_id(t.object_id);
+        pt->mutable_length()->Add(t.length.begin(), t.length.end());
+        pt->mutable_width()->Add(t.width.begin(), t.width.end());
+        pt->mutable_height()->Add(t.height.begin(), t.height.end());
+        for (uint8_t v : t.valid) pt->add_valid(v != 0);
+        if (t.object_type != 0) pt->set_object_type(t.object_type);
       }
     }
   }
@@ -388,9 +483,16 @@ absl::StatusOr<Submission> read_submission(const std::vector<std::string>& paths
       for (const wo::JointScene& pj : pr.joint_scenes()) {
         std::vector<SimulatedTrajectory> joint;
         for (const wo::SimulatedTrajectory& pt : pj.simulated_trajectories())
-          joint.push_back({pt.object_id(), {pt.center_x().begin(), pt.center_x().end()},
-                           {pt.center_y().begin(), pt.center_y().end()}, {pt.center_z().begin(), pt.center_z().end()},
-                           {pt.heading().begin(), pt.heading().end()}});
+          joint.push_back({pt.object_id(),
+                           {pt.center_x().begin(), pt.center_x().end()},
+                           {pt.center_y().begin(), pt.center_y().end()},
+                           {pt.center_z().begin(), pt.center_z().end()},
+                           {pt.heading().begin(), pt.heading().end()},
+                           {pt.length().begin(), pt.length().end()},
+                           {pt.width().begin(), pt.width().end()},
+                           {pt.height().begin(), pt.height().end()},
+                           {pt.valid().begin(), pt.valid().end()},
+                           pt.object_type()});
         r.joint_scenes.push_back(std::move(joint));
       }
       out.rollouts.push_back(std::move(r));

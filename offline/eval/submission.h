@@ -22,10 +22,14 @@ inline constexpr int kChallengeFutureFrames = 80;
 // message limit (the reason the challenge shards submissions at all).
 inline constexpr int kScenariosPerShard = 32;
 
-// One object's simulated future: frames current + 1 ... at 10 Hz, float32 as the challenge stores them.
+// One object's simulated future: frames current + 1 ... at 10 Hz, float32 as the challenge stores them. A Scenario
+// Generation submission holds every frame (history included) and the box, validity and type too.
 struct SimulatedTrajectory {
   int32_t object_id = 0;
   std::vector<float> x, y, z, heading;
+  std::vector<float> length, width, height;  // Scenario Generation: per frame
+  std::vector<uint8_t> valid;                // Scenario Generation: per frame
+  int32_t object_type = 0;                   // Scenario Generation: a Track.ObjectType value; 0: not given
 };
 
 // The parallel rollouts of one scenario; each rollout (a joint scene) holds every sim agent's trajectory.
@@ -69,6 +73,17 @@ void round_to_submission(JointScene& scene, int now);
 // given twice, an object that is not a sim agent, a trajectory of the wrong length, a non-finite value.
 absl::StatusOr<std::vector<JointScene>> scenes_from_rollouts(const Scenario& s, const ScenarioRollouts& r,
                                                              const std::string& where);
+
+// Scenario Generation (eval --protocol scenario-gen): each scene's objects are the sim agents (sim_agent_tracks(s)
+// order, as scenario_gen.h builds them) with every frame, history included: x, y, z, heading, the box, validity and
+// type per trajectory (float32). Every frame must be valid.
+absl::StatusOr<ScenarioRollouts> scenegen_rollouts_from_scenes(const Scenario& s, const std::vector<JointScene>& scenes);
+// The scenes a Scenario Generation submission holds for `s`, objects in sim_agent_tracks order: each sim agent once,
+// every field of every frame given (num_frames values), finite, the type a vehicle, pedestrian or cyclist. Validity
+// is the challenge's: every frame of a sim agent (the file's valid field is read but, as in the official scorer, not
+// used). Errors start with `where` and name the rollout and object.
+absl::StatusOr<std::vector<JointScene>> scenegen_scenes_from_rollouts(const Scenario& s, const ScenarioRollouts& r,
+                                                                      const std::string& where);
 
 // How a submission departs from the challenge's requirements (empty when it meets them): rollout counts, current
 // frame and future length of each scenario (`scenarios`: the logs, matched by id), and missing metadata.
