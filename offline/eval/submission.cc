@@ -87,14 +87,20 @@ absl::StatusOr<SubmissionMetadata> read_submission_metadata(const std::string& p
   return m;
 }
 
-absl::StatusOr<ScenarioRollouts> rollouts_from_scenes(const Scenario& s, const std::vector<JointScene>& scenes) {
-  const int now = s.current_time_index;
+namespace {
+
+// Rollouts as the submission holds them. Sim agents: at least the sim agents, the frames after the current one, the
+// pose only. Scenario generation (`scene_gen`): exactly the sim agents, every frame, with type, box and validity.
+absl::StatusOr<ScenarioRollouts> submission_rollouts(const Scenario& s, const std::vector<JointScene>& scenes,
+                                                     bool scene_gen) {
+  const int first_frame = scene_gen ? 0 : s.current_time_index + 1;
   const std::vector<int> agents = sim_agent_tracks(s);
   ScenarioRollouts out;
   out.scenario_id = s.id;
   for (size_t r = 0; r < scenes.size(); ++r) {
     const JointScene& scene = scenes[r];
-    if (scene.objects.size() < agents.size() || scene.num_frames() != s.num_frames())
+    const bool count_ok = scene_gen ? scene.objects.size() == agents.size() : scene.objects.size() >= agents.size();
+    if (!count_ok || scene.num_frames() != s.num_frames())
       return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": ", scene.objects.size(),
                                                      " objects over ", scene.num_frames(), " frames, not the ",
                                                      agents.size(), " sim agents over ", s.num_frames()));
@@ -106,22 +112,33 @@ absl::StatusOr<ScenarioRollouts> rollouts_from_scenes(const Scenario& s, const s
                                                        ", not sim agent ", s.tracks[agents[k]].id));
       SimulatedTrajectory t;
       t.object_id = static_cast<int32_t>(o.id);
-      for (int f = now + 1; f < scene.num_frames(); ++f) {
+      if (scene_gen) t.object_type = static_cast<int32_t>(o.type);
+      const int end = scene_gen ? static_cast<int>(o.states.size()) : scene.num_frames();
+      for (int f = first_frame; f < end; ++f) {
         const BoxState& b = o.states[f];
         if (!b.valid)
-          return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": object ", o.id,
-                                                         " has no state at frame ", f,
-                                                         ", and a submission holds every sim agent at every frame"));
-        t.x.push_back(static_cast<float>(b.x));
-        t.y.push_back(static_cast<float>(b.y));
-        t.z.push_back(static_cast<float>(b.z));
-        t.heading.push_back(static_cast<float>(b.heading));
+          return absl::InvalidArgumentError(absl::StrCat(
+              "scenario ", s.id, " rollout ", r, ": object ", o.id, " has no state at frame ", f,
+              scene_gen ? ", and a scenario-generation submission holds every frame"
+                        : ", and a submission holds every sim agent at every frame"));
+        for (auto [v, x] : {std::pair{&t.x, b.x}, {&t.y, b.y}, {&t.z, b.z}, {&t.heading, b.heading}})
+          v->push_back(static_cast<float>(x));
+        if (!scene_gen) continue;
+        for (auto [v, x] : {std::pair{&t.length, b.length}, {&t.width, b.width}, {&t.height, b.height}})
+          v->push_back(static_cast<float>(x));
+        t.valid.push_back(1);
       }
       joint.push_back(std::move(t));
     }
     out.joint_scenes.push_back(std::move(joint));
   }
   return out;
+}
+
+}  // namespace
+
+absl::StatusOr<ScenarioRollouts> rollouts_from_scenes(const Scenario& s, const std::vector<JointScene>& scenes) {
+  return submission_rollouts(s, scenes, /*scene_gen=*/false);
 }
 
 std::vector<SimulatedTrajectory> trajectories_from_rollout(const Scenario& rollout) {
@@ -211,40 +228,7 @@ absl::StatusOr<std::vector<JointScene>> scenes_from_rollouts(const Scenario& s, 
 }
 
 absl::StatusOr<ScenarioRollouts> scenegen_rollouts_from_scenes(const Scenario& s, const std::vector<JointScene>& scenes) {
-  const std::vector<int> agents = sim_agent_tracks(s);
-  ScenarioRollouts out;
-  out.scenario_id = s.id;
-  for (size_t r = 0; r < scenes.size(); ++r) {
-    const JointScene& scene = scenes[r];
-    if (scene.objects.size() != agents.size() || scene.num_frames() != s.num_frames())
-      return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": ", scene.objects.size(),
-                                                     " objects over ", scene.num_frames(), " frames, not the ",
-                                                     agents.size(), " sim agents over ", s.num_frames()));
-    std::vector<SimulatedTrajectory> joint;
-    for (size_t k = 0; k < agents.size(); ++k) {
-      const SceneObject& o = scene.objects[k];
-      if (o.id != s.tracks[agents[k]].id)
-        return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": object ", k, " is ", o.id,
-                                                       ", not sim agent ", s.tracks[agents[k]].id));
-      SimulatedTrajectory t;
-      t.object_id = static_cast<int32_t>(o.id);
-      t.object_type = static_cast<int32_t>(o.type);
-      for (size_t f = 0; f < o.states.size(); ++f) {
-        const BoxState& b = o.states[f];
-        if (!b.valid)
-          return absl::InvalidArgumentError(absl::StrCat("scenario ", s.id, " rollout ", r, ": object ", o.id,
-                                                         " has no state at frame ", f,
-                                                         ", and a scenario-generation submission holds every frame"));
-        for (auto [v, x] : {std::pair{&t.x, b.x}, {&t.y, b.y}, {&t.z, b.z}, {&t.heading, b.heading},
-                            {&t.length, b.length}, {&t.width, b.width}, {&t.height, b.height}})
-          v->push_back(static_cast<float>(x));
-        t.valid.push_back(1);
-      }
-      joint.push_back(std::move(t));
-    }
-    out.joint_scenes.push_back(std::move(joint));
-  }
-  return out;
+  return submission_rollouts(s, scenes, /*scene_gen=*/true);
 }
 
 absl::StatusOr<std::vector<JointScene>> scenegen_scenes_from_rollouts(const Scenario& s, const ScenarioRollouts& r,
