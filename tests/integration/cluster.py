@@ -84,6 +84,25 @@ def routed(session_id):
     return ((ROUTE, session_id),)
 
 
+def start_nginx(owner, prefix, conf):
+    """nginx on `conf` under `prefix` for a cluster `owner` (its nginx, nginx_log, channel and stub), once a call
+    through it is answered."""
+    owner.nginx_log = open(os.path.join(prefix, "nginx.log"), "w")
+    owner.nginx = subprocess.Popen(["nginx", "-p", prefix, "-c", conf, "-e", "stderr"], stdout=owner.nginx_log,
+                                   stderr=subprocess.STDOUT)
+    owner.channel = grpc.insecure_channel(owner.target)
+    owner.stub = rpc.SimulatorStub(owner.channel)
+    deadline = time.time() + 30
+    while True:  # the router is up when a call through it is answered
+        try:
+            owner.stub.ListScenarios(pb.ListScenariosRequest(), timeout=5)
+            return
+        except grpc.RpcError:
+            if owner.nginx.poll() is not None or time.time() > deadline:
+                raise RuntimeError("nginx did not start:\n" + owner.router_output())
+            time.sleep(0.2)
+
+
 class Cluster:
     def __init__(self, replicas=3, flags=()):
         self.dir = tempfile.mkdtemp(prefix="ss-it-cluster-")
@@ -104,20 +123,8 @@ class Cluster:
         conf = os.path.join(prefix, "nginx.conf")
         with open(conf, "w") as f:
             f.write(render_nginx([f"127.0.0.1:{p}" for p in self.ports], self.router_port))
-        self.nginx_log = open(os.path.join(prefix, "nginx.log"), "w")
-        self.nginx = subprocess.Popen(["nginx", "-p", prefix, "-c", conf, "-e", "stderr"], stdout=self.nginx_log,
-                                      stderr=subprocess.STDOUT)
-        self.channel = grpc.insecure_channel(self.target)
-        self.stub = rpc.SimulatorStub(self.channel)
-        deadline = time.time() + 30
-        while True:  # the router is up when a call through it is answered
-            try:
-                self.stub.ListScenarios(pb.ListScenariosRequest(), timeout=5)
-                return self
-            except grpc.RpcError:
-                if self.nginx.poll() is not None or time.time() > deadline:
-                    raise RuntimeError("nginx did not start:\n" + self.router_output())
-                time.sleep(0.2)
+        start_nginx(self, prefix, conf)
+        return self
 
     @property
     def target(self):
@@ -225,20 +232,8 @@ class StoreCluster:
         os.mkdir(self.prefix)
         self.write_router(sorted(self.servers))
         conf = os.path.join(self.prefix, "nginx.conf")
-        self.nginx_log = open(os.path.join(self.prefix, "nginx.log"), "w")
-        self.nginx = subprocess.Popen(["nginx", "-p", self.prefix, "-c", conf, "-e", "stderr"], stdout=self.nginx_log,
-                                      stderr=subprocess.STDOUT)
-        self.channel = grpc.insecure_channel(self.target)
-        self.stub = rpc.SimulatorStub(self.channel)
-        deadline = time.time() + 30
-        while True:
-            try:
-                self.stub.ListScenarios(pb.ListScenariosRequest(), timeout=5)
-                return self
-            except grpc.RpcError:
-                if self.nginx.poll() is not None or time.time() > deadline:
-                    raise RuntimeError("nginx did not start:\n" + self.router_output())
-                time.sleep(0.2)
+        start_nginx(self, self.prefix, conf)
+        return self
 
     @property
     def target(self):
