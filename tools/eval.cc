@@ -103,7 +103,8 @@ constexpr const char* kUsage =
     "       scenestreamer eval --protocol scenario-gen --data ... --json OUT.json ([--model W] [--mode full] |\n"
     "                          --baseline log|placement | --submission FILE_OR_DIR) [--rollouts K] [--seed S]\n"
     "                          [--top-p P] [--temperature T] [--roi-radius R] [--placement-temperature T]\n"
-    "                          [--placement-top-p P] [--placement-clearance M] [--history constant-velocity|clear]\n"
+    "                          [--placement-top-p P] [--placement-clearance M] [--placement-room]\n"
+    "                          [--pedestrian-contact] [--history constant-velocity|clear]\n"
     "                          [--wosac-submission DIR]\n"
     "  The Scenario Generation Challenge (docs/evaluation.md): the model in full mode places the log's number of\n"
     "  vehicles, pedestrians and cyclists around the SDC (whose history is the only one given) and generates every\n"
@@ -153,7 +154,8 @@ int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& p
   const std::string model_flag = line.first_given({flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_top_p),
                                                    flag(FLAGS_temperature), flag(FLAGS_motion_reject),
                                                    flag(FLAGS_roi_radius), flag(FLAGS_placement_temperature),
-                                                   flag(FLAGS_placement_top_p), flag(FLAGS_placement_clearance)});
+                                                   flag(FLAGS_placement_top_p), flag(FLAGS_placement_clearance),
+                                                   flag(FLAGS_placement_room), flag(FLAGS_pedestrian_contact)});
   if (line.has(FLAGS_baseline)) {
     const std::string b = absl::GetFlag(FLAGS_baseline);
     if (b == "log") o.policy = ScenarioGenPolicy::log_oracle;
@@ -179,6 +181,8 @@ int scenario_gen_main(const CommandLine& line, const std::vector<std::string>& p
   o.session.placement_temperature = absl::GetFlag(FLAGS_placement_temperature);
   o.session.placement_top_p = absl::GetFlag(FLAGS_placement_top_p);
   o.session.placement_clearance = absl::GetFlag(FLAGS_placement_clearance);
+  o.session.placement_room = absl::GetFlag(FLAGS_placement_room);
+  o.session.pedestrian_contact = absl::GetFlag(FLAGS_pedestrian_contact);
   const std::string history = absl::GetFlag(FLAGS_history);
   if (history == "clear") o.history = ScenarioGenHistory::clear;
   else if (history != "constant-velocity") return fail("--history '" + history + "' is not constant-velocity or clear");
@@ -224,7 +228,8 @@ int eval_main(int argc, char** argv) {
   const Command command{"scenestreamer eval", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_mode), flag(FLAGS_seed), flag(FLAGS_sdc), flag(FLAGS_top_p),
                          flag(FLAGS_temperature), flag(FLAGS_motion_reject), flag(FLAGS_wosac_submission),
-                         flag(FLAGS_submission_metadata), flag(FLAGS_kv_precision), flag(FLAGS_matmul_precision)},
+                         flag(FLAGS_submission_metadata), flag(FLAGS_kv_precision), flag(FLAGS_matmul_precision),
+                         flag(FLAGS_placement_room), flag(FLAGS_pedestrian_contact)},
                         true};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
@@ -238,6 +243,11 @@ int eval_main(int argc, char** argv) {
   const std::string protocol = absl::GetFlag(FLAGS_protocol);
   if (protocol == "scenario-gen") return scenario_gen_main(line, paths);
   if (protocol != "wosac") return fail("--protocol '" + protocol + "' is not wosac or scenario-gen");
+  if (const std::string g = line.first_given({flag(FLAGS_placement_temperature), flag(FLAGS_placement_top_p),
+                                              flag(FLAGS_placement_clearance), flag(FLAGS_placement_room),
+                                              flag(FLAGS_pedestrian_contact), flag(FLAGS_history)});
+      !g.empty())
+    return fail(g + " goes with --protocol scenario-gen");
 
   EvalOptions options;
   EvalRunInfo run;

@@ -19,6 +19,8 @@ ABSL_DECLARE_FLAG(std::string, sdc);                  // simulate, eval
 ABSL_DECLARE_FLAG(double, top_p);                     // simulate, eval
 ABSL_DECLARE_FLAG(double, temperature);               // simulate, eval
 ABSL_DECLARE_FLAG(bool, motion_reject);               // simulate, eval
+ABSL_DECLARE_FLAG(bool, placement_room);              // simulate, eval
+ABSL_DECLARE_FLAG(bool, pedestrian_contact);          // simulate, eval
 ABSL_DECLARE_FLAG(std::string, wosac_submission);     // convert, eval
 ABSL_DECLARE_FLAG(std::string, submission_metadata);  // convert, eval
 ABSL_DECLARE_FLAG(std::string, kv_precision);         // simulate, eval, bench

@@ -61,7 +61,8 @@ int simulate_main(int argc, char** argv) {
   const Command command{"scenestreamer simulate", kUsage, __FILE__,
                         {flag(FLAGS_model), flag(FLAGS_out), flag(FLAGS_mode), flag(FLAGS_sdc), flag(FLAGS_seed),
                          flag(FLAGS_index), flag(FLAGS_top_p), flag(FLAGS_temperature), flag(FLAGS_motion_reject),
-                         flag(FLAGS_kv_precision), flag(FLAGS_matmul_precision)}};
+                         flag(FLAGS_placement_room), flag(FLAGS_pedestrian_contact), flag(FLAGS_kv_precision),
+                         flag(FLAGS_matmul_precision)}};
   CommandLine line;
   if (auto exit_code = parse_command(command, argc, argv, &line)) return *exit_code;
   if (!line.has(FLAGS_simulate_scenario) || !line.has(FLAGS_out))
@@ -78,6 +79,12 @@ int simulate_main(int argc, char** argv) {
   o.top_p = absl::GetFlag(FLAGS_top_p);
   o.temperature = absl::GetFlag(FLAGS_temperature);
   o.motion_reject = absl::GetFlag(FLAGS_motion_reject);
+  o.placement_room = absl::GetFlag(FLAGS_placement_room);
+  o.pedestrian_contact = absl::GetFlag(FLAGS_pedestrian_contact);
+  if (o.placement_room && o.mode != SessionMode::full && o.mode != SessionMode::densify)
+    return fail("--placement-room shapes where new agents are placed: --mode full or densify");
+  if (o.pedestrian_contact && (o.mode == SessionMode::log || o.mode == SessionMode::idm))
+    return fail("--pedestrian-contact shapes the model's motion: not with --mode " + mode);
   o.max_agents = absl::GetFlag(FLAGS_max_agents);
   o.densify_target = absl::GetFlag(FLAGS_densify_target);
   const int steps = absl::GetFlag(FLAGS_simulate_steps), index = absl::GetFlag(FLAGS_index),

@@ -72,6 +72,27 @@ StepState state_from_kin(const KinematicState& k, const StepState& box) {
 }
 
 
+
+// Whether `a`, braking at kRejectBrake along its velocity from its state now, stops short of `o` moving on at its
+// velocity: their boxes are compared every metre or so of a's stopping path, at the same times.
+bool stops_short_of(const StepState& a, const StepState& o) {
+  const double v = std::hypot(a.vx, a.vy);
+  if (v < 0.1) return true;
+  const double t_stop = v / kRejectBrake, d_stop = v * t_stop / 2;
+  const double vo = std::hypot(o.vx, o.vy);
+  const double reach = d_stop + vo * t_stop + (std::hypot(a.length, a.width) + std::hypot(o.length, o.width)) / 2;
+  if (std::hypot(a.x - o.x, a.y - o.y) > reach) return true;
+  const int samples = std::max(1, static_cast<int>(std::ceil(d_stop)));
+  const Vec2 u{a.vx / v, a.vy / v};
+  Box ba = box_of(a), bo = box_of(o);
+  for (int k = 1; k <= samples; ++k) {
+    const double t = t_stop * k / samples, d = v * t - kRejectBrake * t * t / 2;
+    ba.pose.x = a.x + d * u.x, ba.pose.y = a.y + d * u.y;
+    bo.pose.x = o.x + t * o.vx, bo.pose.y = o.y + t * o.vy;
+    if (boxes_overlap(ba, bo)) return false;
+  }
+  return true;
+}
 }  // namespace
 
 int Session::effective_window() const {
@@ -89,6 +110,22 @@ Vec2 Session::roi_centre() const {
     for (const Agent& a : agents_)
       if (a.id == scenario_->tracks[sdc].id) return {a.state.x, a.state.y};
   return scenario_focus(*scenario_);
+}
+
+bool Session::clear_of_sdc_past(const StepState& a) const {
+  const int sdc = scenario_->sdc_track_index;
+  if (sdc < 0) return true;
+  const Track& t = scenario_->tracks[sdc];
+  const int now = step_ * kFramesPerStep;
+  Box b = box_of(a);
+  for (int f = std::max(0, now - kFramesPerStep * 2); f < now && f < static_cast<int>(t.states.size()); ++f) {
+    const ObjectState& o = t.states[f];
+    if (!o.valid) continue;
+    const double dt = (now - f) * kFrameSeconds;
+    b.pose.x = a.x - dt * a.vx, b.pose.y = a.y - dt * a.vy;
+    if (boxes_overlap(b, {{o.x, o.y, o.heading}, o.length, o.width})) return false;
+  }
+  return true;
 }
 
 int Session::anchor_segment(const StepState& s) const { return ss::anchor_segment(map_->index, s); }
@@ -272,7 +309,7 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     near.clear();
     for (size_t j = 0; j < n; ++j)
       if (j != i && distance({now[i].pose.x, now[i].pose.y}, {now[j].pose.x, now[j].pose.y}) <= reach[i] + reach[j] &&
-          !boxes_overlap(now[i], now[j]))
+          !boxes_overlap(now[i], now[j]) && !(options_.pedestrian_contact && agents_[i].type == 1 && agents_[j].type == 1))
         near.push_back(j);
   };
   // The three parts of a control's test. Every level asks that its boxes clear the others' next and half-way boxes;
@@ -476,6 +513,10 @@ Session::NewAgent Session::sample_agent(const Mat& h_last, bool force_continue, 
       mine.length += 2 * options_.placement_clearance, mine.width += 2 * options_.placement_clearance;
       placed = std::none_of(agents_.begin(), agents_.end(),
                             [&](const Agent& o) { return boxes_overlap(box_of(o.state), mine); });
+      if (placed && options_.placement_room)
+        placed = std::all_of(agents_.begin(), agents_.end(), [&](const Agent& o) {
+          return stops_short_of(a.state, o.state) && stops_short_of(o.state, a.state);
+        }) && (!by_count || clear_of_sdc_past(a.state));
       if (!placed) undo_to(cache_before_ms, replay_before_ms);
     }
     if (!placed) {

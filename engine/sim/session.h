@@ -132,6 +132,9 @@ class Session {
   Vec2 roi_centre() const;
   int effective_window() const;
   int anchor_segment(const StepState& s) const;
+  // With agent_counts the SDC's last second is the log's: a new agent moved back along its velocity over that second
+  // stays clear of the SDC's logged boxes (options.placement_room).
+  bool clear_of_sdc_past(const StepState& a) const;
   static TokenAgent token_agent(const Agent& a);
   DecoderToken light_token(const Light& l) const;
   void group_tokens(const Agent& a, int order, std::vector<DecoderToken>& out) const;

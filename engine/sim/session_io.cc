@@ -85,6 +85,8 @@ std::string Session::save() const {
   o->set_placement_temperature(options_.placement_temperature);
   o->set_placement_top_p(options_.placement_top_p);
   o->set_placement_clearance(options_.placement_clearance);
+  o->set_placement_room(options_.placement_room);
+  o->set_pedestrian_contact(options_.pedestrian_contact);
   m.set_tick(tick_);
   for (auto [poses, out] : {std::pair{&latest_pose_, m.mutable_latest_pose()},
                             std::pair{&step_controls_, m.mutable_step_controls()}}) {
@@ -200,6 +202,8 @@ absl::StatusOr<std::unique_ptr<Session>> Session::restore(std::shared_ptr<const 
   o.placement_temperature = mo.has_placement_temperature() ? mo.placement_temperature() : 1.0;
   o.placement_top_p = mo.has_placement_top_p() ? mo.placement_top_p() : 1.0;
   o.placement_clearance = mo.placement_clearance();
+  o.placement_room = mo.placement_room();
+  o.pedestrian_contact = mo.pedestrian_contact();
   s->tick_ = m.tick();
   if (o.tick_hz != 2 && o.tick_hz != 10) return bad(absl::StrCat("tick_hz ", o.tick_hz, " (only 2 or 10)"));
   if (s->tick_ < 0) return bad("negative tick");

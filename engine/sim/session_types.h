@@ -39,6 +39,11 @@ struct SessionOptions {
   double placement_temperature = 1.0;
   double placement_top_p = 1.0;
   double placement_clearance = 0.0;  // metres a new agent's box keeps from every other box (0: no overlap)
+  // A new agent leaves room to stop: braking at 6 m/s^2 from its velocity, it stops short of every agent moving on
+  // at its velocity, and every agent braking so stops short of it (the motion reject sampler's first rule).
+  // With agent_counts also: moved back along its velocity over the last second, it stays clear of the SDC's logged
+  // boxes (the challenge gives the ego's history, so a generated agent's history must not cross it).
+  bool placement_room = false;
   // Full mode: the agents to place per type (vehicles, pedestrians, cyclists), the Scenario Generation Challenge's
   // input. Empty: the model decides how many (its end-of-agents head). Given: the scenario's SDC (valid at the
   // current frame) is taken from the log at the first step, as the challenge gives the ego's history, and is driven
@@ -47,6 +52,9 @@ struct SessionOptions {
   // throughout.
   std::vector<int> agent_counts;
   bool motion_reject = true;   // redraw a control that runs an agent into another or a vehicle off the road
+  // Pedestrians may touch: the reject sampler does not test a pedestrian's control against another pedestrian
+  // (logged pedestrians walking in groups overlap; docs/model.md, "Scenario generation").
+  bool pedestrian_contact = false;
   int tick_hz = 2;             // ticks per second: 2 (a tick is a model step) or 10 (five ticks per model step)
   bool operator==(const SessionOptions&) const = default;
 };

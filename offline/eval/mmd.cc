@@ -12,21 +12,21 @@ double gaussian_mmd2(const std::vector<std::vector<double>>& x, const std::vecto
   for (const auto& v : x) z.push_back(&v);
   for (const auto& v : y) z.push_back(&v);
   const size_t n = x.size(), total = z.size();
-  std::vector<double> d(total * total, 0.0);
+  // Two passes over the pairs instead of a stored distance matrix: the rollouts pooled make thousands of points.
+  const auto d2 = [&](size_t i, size_t j) {
+    double s = 0;
+    for (size_t k = 0; k < z[i]->size(); ++k) s += ((*z[i])[k] - (*z[j])[k]) * ((*z[i])[k] - (*z[j])[k]);
+    return s;
+  };
   double sum = 0;
   for (size_t i = 0; i < total; ++i)
-    for (size_t j = 0; j < total; ++j) {
-      double s = 0;
-      for (size_t k = 0; k < z[i]->size(); ++k) s += ((*z[i])[k] - (*z[j])[k]) * ((*z[i])[k] - (*z[j])[k]);
-      d[i * total + j] = s;
-      sum += s;
-    }
+    for (size_t j = i + 1; j < total; ++j) sum += 2 * d2(i, j);
   // One bandwidth from the data: the mean squared distance over distinct pairs of the pooled sample.
   const double h = sum / static_cast<double>(total * total - total);
   double xx = 0, yy = 0, xy = 0;
   for (size_t i = 0; i < total; ++i)
     for (size_t j = 0; j < total; ++j) {
-      const double k = h > 0 ? std::exp(-d[i * total + j] / h) : 1.0;  // h = 0: every point is the same
+      const double k = h > 0 ? std::exp(-d2(i, j) / h) : 1.0;  // h = 0: every point is the same
       if (i < n && j < n) xx += k;
       else if (i >= n && j >= n) yy += k;
       else xy += k;  // both K_XY and K_YX

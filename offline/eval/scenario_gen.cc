@@ -419,26 +419,41 @@ std::vector<InitialAgent> initial_agents(const Scenario& s, const JointScene& sc
 
 void clear_history(JointScene& scene, int now, const std::vector<size_t>& moved) {
   const auto box = [](const BoxState& b) { return Box{{b.x, b.y, b.heading}, b.length, b.width}; };
+  const auto overlap = [&](const BoxState& a, const BoxState& b) {
+    return std::abs(a.x - b.x) + std::abs(a.y - b.y) < a.length + b.length + a.width + b.width &&
+           boxes_overlap(box(a), box(b));
+  };
   std::vector<bool> is_moved(scene.objects.size(), false);
   for (size_t k : moved) is_moved[k] = true;
+  std::vector<bool> held(scene.objects.size(), false);  // standing from the frame after back
   for (int f = now - 1; f >= 0; --f) {
-    std::vector<const BoxState*> settled;
-    for (size_t k = 0; k < scene.objects.size(); ++k)
-      if (!is_moved[k]) settled.push_back(&scene.objects[k].states[f]);
-    for (size_t k : moved) {
-      BoxState& b = scene.objects[k].states[f];
-      const BoxState& after = scene.objects[k].states[f + 1];
-      const auto clear = [&](const BoxState& c) {
-        return std::none_of(settled.begin(), settled.end(), [&](const BoxState* o) {
-          return std::abs(o->x - c.x) + std::abs(o->y - c.y) < o->length + c.length + o->width + c.width &&
-                 boxes_overlap(box(*o), box(c));
-        });
-      };
-      if (!clear(b) && clear(after)) {
-        // Held from here back: every earlier frame keeps this pose too.
-        for (int g = f; g >= 0; --g) scene.objects[k].states[g] = after;
+    std::vector<bool> holding(scene.objects.size(), false);  // holds at this frame
+    for (size_t k : moved)
+      if (held[k]) scene.objects[k].states[f] = scene.objects[k].states[f + 1], holding[k] = true;
+    const auto clear_of_settled = [&](const BoxState& c) {
+      for (size_t o = 0; o < scene.objects.size(); ++o)
+        if (!is_moved[o] && scene.objects[o].states[f].valid && overlap(scene.objects[o].states[f], c)) return false;
+      return true;
+    };
+    // Every object's frame at once, so the order of `moved` does not decide who gives way: an agent whose step back
+    // overlaps any box of this frame (settled, held or stepping) holds instead, until nothing changes. Holding only
+    // ever replaces stepping, so this ends; two held boxes were clear of each other at the frame after.
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (size_t k : moved) {
+        if (holding[k]) continue;
+        const BoxState& b = scene.objects[k].states[f];
+        bool clear = true;
+        for (size_t o = 0; o < scene.objects.size() && clear; ++o)
+          clear = o == k || !scene.objects[o].states[f].valid || !overlap(scene.objects[o].states[f], b);
+        const BoxState& after = scene.objects[k].states[f + 1];
+        // Where holding overlaps a settled box too (it moves into this place), the step back is kept.
+        if (!clear && clear_of_settled(after)) {
+          scene.objects[k].states[f] = after;
+          holding[k] = held[k] = true;
+          changed = true;
+        }
       }
-      settled.push_back(&b);
     }
   }
 }
@@ -512,6 +527,7 @@ absl::StatusOr<ScenarioGenEvaluation> evaluate_scenario_gen(std::shared_ptr<cons
                                                                         : options.rollouts;
   std::vector<SceneFeatures> sims;
   std::vector<JointScene> kept;
+  std::vector<InitialAgent> pooled_strict, pooled_relaxed;  // every rollout's, for the pooled MMD
   double strict[4] = {}, relaxed[4] = {};
   int n_strict[4] = {}, n_relaxed[4] = {};
   auto add = [](const InitialStateMmd& m, double* sum, int* n) {
@@ -554,7 +570,10 @@ absl::StatusOr<ScenarioGenEvaluation> evaluate_scenario_gen(std::shared_ptr<cons
     out.filled += g.filled;
     out.overlapping_rollouts += g.overlapping_pairs > 0;
     add(initial_state_mmd(g.initial, log_initial, frame), relaxed, n_relaxed);
-    add(initial_state_mmd(strict_set(g.initial, frame, s), log_strict, frame), strict, n_strict);
+    const std::vector<InitialAgent> st = strict_set(g.initial, frame, s);
+    pooled_strict.insert(pooled_strict.end(), st.begin(), st.end());
+    pooled_relaxed.insert(pooled_relaxed.end(), g.initial.begin(), g.initial.end());
+    add(initial_state_mmd(st, log_strict, frame), strict, n_strict);
     const PlacedAgents p = placed_agents(g.initial, {}, s, map.road_edges);
     out.placed_generated.agents += p.agents, out.placed_generated.vehicles += p.vehicles;
     out.placed_generated.offroad_vehicles += p.offroad_vehicles;
@@ -567,6 +586,8 @@ absl::StatusOr<ScenarioGenEvaluation> evaluate_scenario_gen(std::shared_ptr<cons
   };
   out.mmd_strict = mean(strict, n_strict);
   out.mmd_relaxed = mean(relaxed, n_relaxed);
+  out.mmd_pooled_strict = initial_state_mmd(pooled_strict, log_strict, frame);
+  out.mmd_pooled_relaxed = initial_state_mmd(pooled_relaxed, log_initial, frame);
   out.rollouts = rollouts;
   out.realism = score_scenario_gen(log_features, sims, types);
   if (scenes) *scenes = std::move(kept);
@@ -596,6 +617,8 @@ ScenarioGenDataset aggregate_scenario_gen(std::span<const ScenarioGenEvaluation>
   for (double M::*field : {&M::position, &M::heading, &M::size, &M::velocity}) {
     d.mmd_strict.*field = mean_of([&](const ScenarioGenEvaluation& e) { return e.mmd_strict.*field; });
     d.mmd_relaxed.*field = mean_of([&](const ScenarioGenEvaluation& e) { return e.mmd_relaxed.*field; });
+    d.mmd_pooled_strict.*field = mean_of([&](const ScenarioGenEvaluation& e) { return e.mmd_pooled_strict.*field; });
+    d.mmd_pooled_relaxed.*field = mean_of([&](const ScenarioGenEvaluation& e) { return e.mmd_pooled_relaxed.*field; });
   }
   for (const ScenarioGenEvaluation& e : scenarios) {
     d.rollouts = e.rollouts;

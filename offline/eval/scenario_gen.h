@@ -61,14 +61,15 @@ std::array<int, 3> model_request(std::array<int, 3> requested, int slots);
 
 // How a generated agent's history (the frames before the current one, which the model does not generate: docs/model.md,
 // "Scenario generation") is made. constant_velocity: it moves back along its generated velocity, heading held.
-// clear: the same, but where that step back would overlap a box already settled at that frame (the SDC's logged one,
-// or another generated agent's) it holds the pose of the frame after from there back (clear_history).
+// clear: the same, but where that step back would overlap another box at that frame (the SDC's logged one, or another
+// generated agent's) it holds the pose of the frame after from there back (clear_history).
 enum class ScenarioGenHistory { constant_velocity, clear };
 // The history frames (now - 1 down to 0) of the objects `moved` made clear of every other box: going back in time
-// each steps back along its own history unless that box would overlap one already settled at that frame (the objects
-// not in `moved` are settled, and those of `moved` settled before it); then it holds the pose of the frame after from
-// there back: it was standing there and moved off later. Where holding overlaps too (something moves into its
-// place), the step back is kept.
+// each steps back along its own history unless that box would overlap another box of that frame (the objects not in
+// `moved` keep theirs; the others' steps back and holds are decided together, until none changes, so the order of
+// `moved` does not matter); then it holds the pose of the frame after from there back: it was standing there and
+// moved off later. Where holding overlaps a box not in `moved` too (it moves into this place), the step back is
+// kept.
 void clear_history(JointScene& scene, int now, const std::vector<size_t>& moved);
 const char* scenario_gen_history_name(ScenarioGenHistory h);
 
@@ -126,6 +127,9 @@ struct ScenarioGenEvaluation {
   std::array<int, 3> requested{};
   RealismScores realism;
   InitialStateMmd mmd_strict, mmd_relaxed;  // means over rollouts (NaN where a set was empty in every rollout)
+  // One MMD of every rollout's agents pooled against the log's: the scenario's generated distribution, not one draw of
+  // it (a per-rollout MMD of 10-30 agents is far from 0 for two samples of one distribution already).
+  InitialStateMmd mmd_pooled_strict, mmd_pooled_relaxed;
   int exact_rollouts = 0;                   // rollouts whose counts per type are the requested ones
   int filled = 0;                           // agents placed by rule for want of a model slot, over the rollouts
   int overlapping_rollouts = 0;             // rollouts with a pair of boxes overlapping at the current frame
@@ -144,7 +148,7 @@ absl::StatusOr<ScenarioGenEvaluation> evaluate_scenario_gen(std::shared_ptr<cons
 struct ScenarioGenDataset {
   int scenarios = 0, rollouts = 0;
   RealismScores realism;
-  InitialStateMmd mmd_strict, mmd_relaxed;
+  InitialStateMmd mmd_strict, mmd_relaxed, mmd_pooled_strict, mmd_pooled_relaxed;
   int exact_rollouts = 0, overlapping_rollouts = 0, total_rollouts = 0, filled = 0;
   PlacedAgents placed_log, placed_generated;
 };

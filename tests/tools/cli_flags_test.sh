@@ -39,12 +39,12 @@ help "$bin" inspect -- json
 help "$bin" convert -- out wosac-submission submission-metadata
 help "$bin" init-weights -- config seed out
 help "$bin" simulate -- scenario model out mode sdc steps seed rollout index top-p temperature motion-reject max-agents densify-target \
-  kv-precision matmul-precision agent-counts
+  kv-precision matmul-precision agent-counts placement-room pedestrian-contact
 help "$bin" bench -- json model scenario steps long-steps kv-precision matmul-precision motion-reject
 help "$bin" render -- scenario index step animate radius out
 help "$bin" eval -- data model mode rollouts seed baseline sdc ego json plots threads compare bootstrap wosac-submission \
   submission-metadata submission top-p temperature motion-reject kv-precision matmul-precision protocol roi-radius \
-  placement-temperature placement-top-p placement-clearance history
+  placement-temperature placement-top-p placement-clearance placement-room pedestrian-contact history
 help "$bin" dataset sumo -- out scenarios seed networks radius map-radius workers warmup record egos-per-window \
   shard-size sumo-bin sumo-home python tmp keep-temp first-job quiet
 help "$bin" dataset stats -- json markdown

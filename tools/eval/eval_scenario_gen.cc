@@ -127,6 +127,8 @@ int run_scenario_gen(ScenarioGenRun& run) {
     j["placement_temperature"] = run.options.session.placement_temperature;
     j["placement_top_p"] = run.options.session.placement_top_p;
     j["placement_clearance"] = run.options.session.placement_clearance;
+    j["placement_room"] = run.options.session.placement_room;
+    j["pedestrian_contact"] = run.options.session.pedestrian_contact;
     j["history"] = scenario_gen_history_name(run.options.history);
   }
   if (run.options.policy == ScenarioGenPolicy::placement) j["seed"] = run.options.session.seed;
@@ -136,6 +138,8 @@ int run_scenario_gen(ScenarioGenRun& run) {
   j["realism"] = realism_json(d.realism);
   j["mmd_strict"] = mmd_json(d.mmd_strict);
   j["mmd_relaxed"] = mmd_json(d.mmd_relaxed);
+  j["mmd_pooled_strict"] = mmd_json(d.mmd_pooled_strict);
+  j["mmd_pooled_relaxed"] = mmd_json(d.mmd_pooled_relaxed);
   j["rollouts_with_exact_counts"] = d.exact_rollouts;
   j["rollouts_with_overlap_at_current_frame"] = d.overlapping_rollouts;
   j["total_rollouts"] = d.total_rollouts;
@@ -151,6 +155,8 @@ int run_scenario_gen(ScenarioGenRun& run) {
     s["realism"] = realism_json(e.realism);
     s["mmd_strict"] = mmd_json(e.mmd_strict);
     s["mmd_relaxed"] = mmd_json(e.mmd_relaxed);
+    s["mmd_pooled_strict"] = mmd_json(e.mmd_pooled_strict);
+    s["mmd_pooled_relaxed"] = mmd_json(e.mmd_pooled_relaxed);
     s["rollouts_with_exact_counts"] = e.exact_rollouts;
     s["rollouts_with_overlap_at_current_frame"] = e.overlapping_rollouts;
     s["agents_placed_by_rule"] = e.filled;
@@ -179,6 +185,12 @@ int run_scenario_gen(ScenarioGenRun& run) {
                        d.mmd_strict.position, d.mmd_strict.heading, d.mmd_strict.size, d.mmd_strict.velocity);
   t += absl::StrFormat("  initial-state MMD (relaxed): position %.4f heading %.4f size %.4f velocity %.4f\n",
                        d.mmd_relaxed.position, d.mmd_relaxed.heading, d.mmd_relaxed.size, d.mmd_relaxed.velocity);
+  t += absl::StrFormat("  initial-state MMD, rollouts pooled (strict): position %.4f heading %.4f size %.4f velocity %.4f\n",
+                       d.mmd_pooled_strict.position, d.mmd_pooled_strict.heading, d.mmd_pooled_strict.size,
+                       d.mmd_pooled_strict.velocity);
+  t += absl::StrFormat("  initial-state MMD, rollouts pooled (relaxed): position %.4f heading %.4f size %.4f velocity %.4f\n",
+                       d.mmd_pooled_relaxed.position, d.mmd_pooled_relaxed.heading, d.mmd_pooled_relaxed.size,
+                       d.mmd_pooled_relaxed.velocity);
   t += absl::StrFormat("  counts exact in %d of %d rollouts; boxes overlapping at the current frame in %d; %d agents "
                        "placed by rule (no model slot left)\n",
                        d.exact_rollouts, d.total_rollouts, d.overlapping_rollouts, d.filled);

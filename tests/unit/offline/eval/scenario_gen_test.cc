@@ -117,6 +117,27 @@ TEST(ScenarioGenScenes, ClearHistoryHoldsAnAgentWhereItsStepBackWouldOverlap) {
   EXPECT_EQ(scene.objects[0].states[0].x, 0.0);    // the settled object too
 }
 
+TEST(ScenarioGenScenes, ClearHistoryDoesNotDependOnTheOrderOfTheMovedAgents) {
+  // Two generated agents, no settled one: P stands at x = 0 throughout; Q, at x = 5 now (frame 3), moved off from
+  // where P stands (x = 0 at frame 2). Going back, Q's step into P's place makes Q hold at x = 5, whichever of the
+  // two is decided first (deciding them one by one, Q first, left P inside Q: P's step back and its hold both met
+  // Q's box, already settled there).
+  auto object = [](std::vector<double> xs) {
+    SceneObject o;
+    for (double x : xs) o.states.push_back({x, 0, 0, 0, 4.0, 2.0, 1.5, true});
+    return o;
+  };
+  for (const std::vector<size_t>& order : {std::vector<size_t>{0, 1}, std::vector<size_t>{1, 0}}) {
+    JointScene scene;
+    scene.objects = {object({0, 0, 0, 0}), object({-10, -5, 0, 5})};
+    clear_history(scene, 3, order);
+    for (int f = 0; f < 3; ++f) {
+      EXPECT_EQ(scene.objects[0].states[f].x, 0.0) << "order " << order[0] << ", frame " << f;
+      EXPECT_EQ(scene.objects[1].states[f].x, 5.0) << "order " << order[0] << ", frame " << f;
+    }
+  }
+}
+
 TEST(ScenarioGenCounts, ParsedAndRefusedByName) {
   auto c = parse_agent_counts("12,3,0");
   ASSERT_TRUE(c.ok()) << c.status();
