@@ -28,11 +28,12 @@ ABSL_FLAG(bool, motion_reject, ss::SessionOptions{}.motion_reject,
           "reject sampling of motion: a sampled control that would run an agent into another, or a vehicle off the "
           "road, is drawn again (--motion-reject=false: the model's draws as they come)");
 ABSL_FLAG(bool, placement_room, ss::SessionOptions{}.placement_room,
-          "full mode with agent counts (simulate, eval --protocol scenario-gen): a new agent leaves room to stop (braking at 6 m/s^2 it stops short of every "
-          "agent moving on, and every agent braking so stops short of it), and moved back along its velocity over "
-          "the last second it stays clear of the SDC's logged boxes");
+          "simulate (full and densify modes), eval --protocol scenario-gen: a new agent leaves room to stop (braking "
+          "at 6 m/s^2 it stops short of every agent moving on, and every agent braking so stops short of it); with "
+          "agent counts, moved back along its velocity over the last second it also clears the SDC's logged boxes");
 ABSL_FLAG(bool, pedestrian_contact, ss::SessionOptions{}.pedestrian_contact,
-          "simulate, eval: the motion reject sampler lets pedestrians touch one another (logged groups do)");
+          "simulate, eval --protocol scenario-gen: the motion reject sampler lets pedestrians touch one another "
+          "(logged pedestrians walking in groups do)");
 ABSL_FLAG(std::string, wosac_submission, "",
           "write the rollouts as a Waymo Open Sim Agents Challenge submission in this directory "
           "(submission.binproto-00000-of-0000N)");

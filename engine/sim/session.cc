@@ -71,8 +71,6 @@ StepState state_from_kin(const KinematicState& k, const StepState& box) {
   return s;
 }
 
-
-
 // Whether `a`, braking at kRejectBrake along its velocity from its state now, stops short of `o` moving on at its
 // velocity: their boxes are compared every metre or so of a's stopping path, at the same times.
 bool stops_short_of(const StepState& a, const StepState& o) {
@@ -309,7 +307,8 @@ void Session::reject_motion_faults(const std::function<std::span<const float>(si
     near.clear();
     for (size_t j = 0; j < n; ++j)
       if (j != i && distance({now[i].pose.x, now[i].pose.y}, {now[j].pose.x, now[j].pose.y}) <= reach[i] + reach[j] &&
-          !boxes_overlap(now[i], now[j]) && !(options_.pedestrian_contact && agents_[i].type == 1 && agents_[j].type == 1))
+          !boxes_overlap(now[i], now[j]) &&
+          !(options_.pedestrian_contact && agents_[i].type == 1 && agents_[j].type == 1))
         near.push_back(j);
   };
   // The three parts of a control's test. Every level asks that its boxes clear the others' next and half-way boxes;

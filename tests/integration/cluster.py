@@ -244,13 +244,23 @@ class StoreCluster:
             return f.read()
 
     def holders(self):
-        """{session id: [replica names holding it]} over the live replicas, asked directly."""
-        out = {}
-        for name, s in self.servers.items():
-            if s.proc.poll() is None:
-                for x in s.stub.ListSessions(pb.ListSessionsRequest(), timeout=30).sessions:
-                    out.setdefault(x.session_id, []).append(name)
-        return out
+        """{session id: [replica names holding it]} over the live replicas, asked directly. The replicas are asked one
+        after another while the load goes on, so a session moving between two of them can be missed by one sweep
+        (or seen twice): the sweep is repeated until two in a row agree (at most 20)."""
+        def sweep():
+            out = {}
+            for name, s in self.servers.items():
+                if s.proc.poll() is None:
+                    for x in s.stub.ListSessions(pb.ListSessionsRequest(), timeout=30).sessions:
+                        out.setdefault(x.session_id, []).append(name)
+            return out
+        last = sweep()
+        for _ in range(20):
+            now = sweep()
+            if now == last:
+                return now
+            last = now
+        return last
 
     def stop(self):
         if self.nginx and self.nginx.poll() is None:
