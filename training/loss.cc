@@ -6,10 +6,11 @@ bool stage_trains(Stage s, const std::string& head) {
   return s == Stage::all_heads || head == "motion" || head == "light";
 }
 
-Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double scene_end_weight) {
+Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double scene_end_weight,
+                  double placement_weight) {
   Loss out;
   out.total = torch::zeros({});
-  auto head = [&](const std::string& name, const torch::Tensor& l, const torch::Tensor& target) {
+  auto head = [&](const std::string& name, const torch::Tensor& l, const torch::Tensor& target, double weight) {
     HeadStat st;
     st.count = target.numel();
     if (st.count == 0) {
@@ -22,11 +23,11 @@ Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double 
     st.loss = ce.item<double>();
     st.accuracy = (flat.detach().argmax(-1) == t).to(torch::kFloat64).mean().item<double>();
     out.heads[name] = st;
-    if (stage_trains(stage, name)) out.total = out.total + ce;
+    if (stage_trains(stage, name)) out.total = out.total + weight * ce;
   };
-  head("light", logits.light, b.light_target);
-  head("motion", logits.motion, b.motion_target);
-  head("type", logits.type, b.type_target);
+  head("light", logits.light, b.light_target, 1.0);
+  head("motion", logits.motion, b.motion_target, 1.0);
+  head("type", logits.type, b.type_target, placement_weight);
   // The end head: its targets at a sequence's first step say how full a scene is; the rest mostly say that no new
   // agent enters (their count is known from the step before), so they can be weighted up.
   {
@@ -50,7 +51,7 @@ Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double 
     out.heads["end"] = st;
     out.heads["end0"] = first;
   }
-  head("state", logits.state, b.state_target);
+  head("state", logits.state, b.state_target, placement_weight);
   // Pointer logits differ in width per example (each map's size): cross-entropy per example, averaged over targets.
   HeadStat seg;
   torch::Tensor sum = torch::zeros({});
@@ -67,7 +68,7 @@ Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double 
     const torch::Tensor ce = sum / static_cast<double>(seg.count);
     seg.loss = ce.item<double>();
     seg.accuracy = static_cast<double>(correct) / seg.count;
-    if (stage_trains(stage, "segment")) out.total = out.total + ce;
+    if (stage_trains(stage, "segment")) out.total = out.total + placement_weight * ce;
   }
   out.heads["segment"] = seg;
   return out;

@@ -30,6 +30,9 @@ bool stage_trains(Stage s, const std::string& head);
 
 // scene_end_weight: the weight of the end-of-agents targets at a sequence's first step in the end head's mean (the
 // others weigh 1). The "end0" stat is those targets alone, for the logs (not in the total).
-Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double scene_end_weight = 1.0);
+// placement_weight: the weight of the placement heads (type, map-segment pointer, relative state) in the total; the
+// others weigh 1. The heads' stats are unweighted.
+Loss compute_loss(const HeadLogits& logits, const Batch& b, Stage stage, double scene_end_weight = 1.0,
+                  double placement_weight = 1.0);
 
 }  // namespace ss::train

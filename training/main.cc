@@ -51,6 +51,9 @@ ABSL_FLAG(std::string, init_from, "",
 ABSL_FLAG(double, scene_end_weight, kDefaults.scene_end_weight,
           "weight of the end-of-agents targets at a sequence's first step, where the scene is placed (the others "
           "weigh 1): they are the only ones that ask how full a scene is");
+ABSL_FLAG(double, placement_weight, kDefaults.placement_weight,
+          "weight of the placement heads (agent type, map-segment pointer, relative state) in the loss (the others "
+          "weigh 1): a fine-tune of how scenes are placed");
 ABSL_FLAG(int, catk, kDefaults.catk_top_k,
           "CAT-K closed-loop fine-tuning: roll each sample out with the current model, moving each agent by the one of "
           "its K most probable tokens nearest the log, and train toward the log from there; 0: teacher forcing");
@@ -115,6 +118,7 @@ int main(int argc, char** argv) {
   o.init_from = absl::GetFlag(FLAGS_init_from);
   o.catk_top_k = absl::GetFlag(FLAGS_catk);
   o.scene_end_weight = absl::GetFlag(FLAGS_scene_end_weight);
+  o.placement_weight = absl::GetFlag(FLAGS_placement_weight);
   if (auto s = ss::train::run_training(o); !s.ok()) {
     std::fprintf(stderr, "scenestreamer-train: %s\n", std::string(s.message()).c_str());
     return 1;

@@ -167,6 +167,8 @@ absl::Status run_training(const TrainOptions& o) {
   if (o.catk_top_k < 0) return absl::InvalidArgumentError(absl::StrCat("--catk ", o.catk_top_k, " must be 0 (off) or positive"));
   if (!(o.scene_end_weight > 0) || !std::isfinite(o.scene_end_weight))
     return absl::InvalidArgumentError(absl::StrCat("--scene-end-weight ", o.scene_end_weight, " must be positive"));
+  if (!(o.placement_weight > 0) || !std::isfinite(o.placement_weight))
+    return absl::InvalidArgumentError(absl::StrCat("--placement-weight ", o.placement_weight, " must be positive"));
   torch::set_num_threads(o.threads);
   at::globalContext().setFlushDenormal(true);
 
@@ -301,7 +303,8 @@ absl::Status run_training(const TrainOptions& o) {
     const double lr = learning_rate(o, st.step);
     for (auto& group : opt.param_groups()) static_cast<torch::optim::AdamWOptions&>(group.options()).lr(lr);
     opt.zero_grad();
-    const Loss loss = compute_loss(model.heads(b, model.forward(b)), b, stage, o.scene_end_weight);
+    const Loss loss = compute_loss(model.heads(b, model.forward(b)), b, stage, o.scene_end_weight,
+                                   o.placement_weight);
     loss.total.backward();
     torch::nn::utils::clip_grad_norm_(model.parameters(), o.clip);
     opt.step();

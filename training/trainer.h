@@ -41,6 +41,7 @@ struct TrainOptions {
   std::string init_from;                // a fresh run (step 0, new optimizer) starting from this checkpoint's weights
   int catk_top_k = 0;                   // > 0: CAT-K closed-loop fine-tuning (closed_loop_example) with this K
   double scene_end_weight = 1.0;        // weight of the end-of-agents targets at a sequence's first step (loss.h)
+  double placement_weight = 1.0;        // weight of the type, pointer and relative-state heads in the loss (loss.h)
 };
 
 absl::Status run_training(const TrainOptions& options);

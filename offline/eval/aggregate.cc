@@ -110,7 +110,7 @@ DatasetEvaluation aggregate(std::span<const ScenarioEvaluation> scenarios) {
     if (s.has_mmd) {
       for (auto [sum, add] :
            {std::pair{&d.placed_log, &s.placed_log}, std::pair{&d.placed_generated, &s.placed_generated}})
-        sum->agents += add->agents, sum->vehicles += add->vehicles, sum->offroad_vehicles += add->offroad_vehicles;
+        *sum += *add;
       if (s.placed_log.agents > 0 && s.rollouts > 0) {
         ++d.placed_scenarios;
         const double generated = static_cast<double>(s.placed_generated.agents) / s.rollouts;

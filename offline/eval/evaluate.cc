@@ -202,8 +202,7 @@ absl::StatusOr<ScenarioEvaluation> evaluate_scenario(std::shared_ptr<const Scena
         relaxed.add(initial_state_mmd(gen, log_initial, frame));
         strict.add(initial_state_mmd(strict_set(gen, frame, s), log_strict, frame));
         const PlacedAgents p = placed_agents(gen, {}, s, map.road_edges);
-        out.placed_generated.agents += p.agents, out.placed_generated.vehicles += p.vehicles;
-        out.placed_generated.offroad_vehicles += p.offroad_vehicles;
+        out.placed_generated += p;
       }
       sims.push_back(scene_features(r.scene, evaluated, map, now, &log, evaluated));
       rollouts.push_back(std::move(r.scene));

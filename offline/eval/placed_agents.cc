@@ -21,6 +21,23 @@ double ground_z(const Scenario& map, double x, double y) {
 }
 
 
+PlacedAgents& PlacedAgents::operator+=(const PlacedAgents& o) {
+  agents += o.agents, vehicles += o.vehicles, offroad_vehicles += o.offroad_vehicles;
+  all_vehicles += o.all_vehicles, standing_vehicles += o.standing_vehicles, vehicle_speed_sum += o.vehicle_speed_sum;
+  return *this;
+}
+
+double offroad_share(const PlacedAgents& p) {
+  return p.vehicles ? static_cast<double>(p.offroad_vehicles) / p.vehicles : std::numeric_limits<double>::quiet_NaN();
+}
+double standing_share(const PlacedAgents& p) {
+  return p.all_vehicles ? static_cast<double>(p.standing_vehicles) / p.all_vehicles
+                        : std::numeric_limits<double>::quiet_NaN();
+}
+double mean_vehicle_speed(const PlacedAgents& p) {
+  return p.all_vehicles ? p.vehicle_speed_sum / p.all_vehicles : std::numeric_limits<double>::quiet_NaN();
+}
+
 PlacedAgents placed_agents(std::span<const InitialAgent> agents, std::span<const double> z, const Scenario& map,
                            const RoadEdges& edges) {
   PlacedAgents out;
@@ -28,7 +45,12 @@ PlacedAgents placed_agents(std::span<const InitialAgent> agents, std::span<const
   for (size_t i = 0; i < agents.size(); ++i) {
     const InitialAgent& a = agents[i];
     ++out.agents;
-    if (a.type != ObjectType::vehicle || edges.empty()) continue;
+    if (a.type != ObjectType::vehicle) continue;
+    const double speed = std::hypot(a.vx, a.vy);
+    ++out.all_vehicles;
+    out.standing_vehicles += speed < kStandingSpeed;
+    out.vehicle_speed_sum += speed;
+    if (edges.empty()) continue;
     // The box's bottom is what the feature measures (centre z minus half the height): a zero height puts the bottom
     // at the ground z for agents the model placed in the plane.
     const bool has_z = i < z.size() && std::isfinite(z[i]);

@@ -18,7 +18,20 @@ struct PlacedAgents {
   int agents = 0;            // vehicles, pedestrians and cyclists
   int vehicles = 0;          // of which vehicles, scored for offroad (0 when the map has no road edge)
   int offroad_vehicles = 0;  // vehicles whose most off-road box corner lies beyond the road edge (WOSAC: > 0 m)
+  // Every vehicle's speed, whether or not the map scores it for offroad: how many stand (below kStandingSpeed) and
+  // the sum of their speeds (for the mean).
+  int all_vehicles = 0;
+  int standing_vehicles = 0;
+  double vehicle_speed_sum = 0;
+
+  PlacedAgents& operator+=(const PlacedAgents& o);
 };
+
+inline constexpr double kStandingSpeed = 0.5;  // m/s
+
+double offroad_share(const PlacedAgents& p);   // of the vehicles scored; NaN without any
+double standing_share(const PlacedAgents& p);  // of every vehicle; NaN without any
+double mean_vehicle_speed(const PlacedAgents& p);
 
 // Counts `agents`, scoring each vehicle's box at its own z, or (NaN z: the model works in the plane) at the z of
 // the nearest map point. A map without road edges scores no vehicle.

@@ -575,8 +575,7 @@ absl::StatusOr<ScenarioGenEvaluation> evaluate_scenario_gen(std::shared_ptr<cons
     pooled_relaxed.insert(pooled_relaxed.end(), g.initial.begin(), g.initial.end());
     add(initial_state_mmd(st, log_strict, frame), strict, n_strict);
     const PlacedAgents p = placed_agents(g.initial, {}, s, map.road_edges);
-    out.placed_generated.agents += p.agents, out.placed_generated.vehicles += p.vehicles;
-    out.placed_generated.offroad_vehicles += p.offroad_vehicles;
+    out.placed_generated += p;
     sims.push_back(scene_features(g.scene, all, map, -1));
     if (scenes) kept.push_back(std::move(g.scene));
   }
@@ -627,7 +626,7 @@ ScenarioGenDataset aggregate_scenario_gen(std::span<const ScenarioGenEvaluation>
     d.exact_rollouts += e.exact_rollouts;
     d.overlapping_rollouts += e.overlapping_rollouts;
     for (auto [a, b] : {std::pair{&d.placed_log, &e.placed_log}, {&d.placed_generated, &e.placed_generated}})
-      a->agents += b->agents, a->vehicles += b->vehicles, a->offroad_vehicles += b->offroad_vehicles;
+      *a += *b;
   }
   return d;
 }

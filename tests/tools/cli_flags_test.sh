@@ -93,13 +93,16 @@ grep -q "frame 3/90" "$tmp/a.svg"
 if [ -n "${SS_TRAIN:-}" ]; then
   help "$SS_TRAIN" -- config data synthetic val out resume real-fraction steps stage1-steps batch lr warmup \
     weight-decay clip max-agents max-map-segments seed threads log-every val-every val-scenarios checkpoint-every \
-    eval-every eval-tool eval-scenarios stop-after init-from catk scene-end-weight
+    eval-every eval-tool eval-scenarios stop-after init-from catk scene-end-weight placement-weight
   help "$SS_TRAIN" export -- checkpoint out
   help "$SS_TRAIN" plot -- run out
   refused "unknown flag --checkpoint" "$SS_TRAIN" --checkpoint x --out "$tmp/run"
   refused "unknown flag --resume" "$SS_TRAIN" export --checkpoint x --out "$tmp/m" --resume
   refused "Illegal value 'many' specified for flag 'steps'" "$SS_TRAIN" --steps many --out "$tmp/run"
   refused "Illegal value 'x' specified for flag 'catk'" "$SS_TRAIN" --catk x --out "$tmp/run"
+  # A bad value the trainer checks itself (exit 1, as for every run error), before it writes anything.
+  if "$SS_TRAIN" --placement-weight 0 --data "$scenario" --out "$tmp/run" 2> "$tmp/err"; then exit 1; fi
+  grep -qF -- "--placement-weight 0 must be positive" "$tmp/err"
   refused "--checkpoint and --out are required" "$SS_TRAIN" export --out "$tmp/m"
   test ! -e "$tmp/run" && test ! -e "$tmp/m"
 fi

@@ -34,15 +34,13 @@ void put_motion(json& j, const MotionMetrics& m) {
             {"add", m.add}, {"fdd", m.fdd}});
 }
 
-double offroad_share(const PlacedAgents& p) {
-  return p.vehicles ? static_cast<double>(p.offroad_vehicles) / p.vehicles : std::nan("");
-}
-
-// Counts divided by `rollouts` (the generated side is summed over them), and the offroad share of the vehicles.
+// Counts divided by `rollouts` (the generated side is summed over them), the offroad share of the vehicles, and how
+// many of them stand.
 json placed_json(const PlacedAgents& p, int rollouts) {
   const double k = std::max(rollouts, 1);
   return {{"agents", p.agents / k}, {"vehicles", p.vehicles / k}, {"offroad_vehicles", p.offroad_vehicles / k},
-          {"offroad_rate", offroad_share(p)}};
+          {"offroad_rate", offroad_share(p)}, {"standing_share", standing_share(p)},
+          {"mean_vehicle_speed", mean_vehicle_speed(p)}};
 }
 
 json mmd_json(const InitialStateMmd& m) {

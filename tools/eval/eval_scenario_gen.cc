@@ -44,7 +44,9 @@ nlohmann::ordered_json placed_json(const PlacedAgents& p) {
   return {{"agents", p.agents},
           {"vehicles", p.vehicles},
           {"offroad_vehicles", p.offroad_vehicles},
-          {"offroad_share", p.vehicles ? static_cast<double>(p.offroad_vehicles) / p.vehicles : NAN}};
+          {"offroad_share", offroad_share(p)},
+          {"standing_share", standing_share(p)},
+          {"mean_vehicle_speed", mean_vehicle_speed(p)}};
 }
 
 }  // namespace
@@ -194,10 +196,14 @@ int run_scenario_gen(ScenarioGenRun& run) {
   t += absl::StrFormat("  counts exact in %d of %d rollouts; boxes overlapping at the current frame in %d; %d agents "
                        "placed by rule (no model slot left)\n",
                        d.exact_rollouts, d.total_rollouts, d.overlapping_rollouts, d.filled);
-  auto share = [](const PlacedAgents& p) { return p.vehicles ? static_cast<double>(p.offroad_vehicles) / p.vehicles : NAN; };
   t += absl::StrFormat("  offroad share of vehicles at the current frame: generated %.4f (%d of %d), log %.4f (%d of %d)\n",
-                       share(d.placed_generated), d.placed_generated.offroad_vehicles, d.placed_generated.vehicles,
-                       share(d.placed_log), d.placed_log.offroad_vehicles, d.placed_log.vehicles);
+                       offroad_share(d.placed_generated), d.placed_generated.offroad_vehicles,
+                       d.placed_generated.vehicles, offroad_share(d.placed_log), d.placed_log.offroad_vehicles,
+                       d.placed_log.vehicles);
+  t += absl::StrFormat("  vehicles standing (below %.1f m/s) at the current frame: generated %.4f, log %.4f; mean speed "
+                       "generated %.2f m/s, log %.2f m/s\n",
+                       kStandingSpeed, standing_share(d.placed_generated), standing_share(d.placed_log),
+                       mean_vehicle_speed(d.placed_generated), mean_vehicle_speed(d.placed_log));
   if (write) t += absl::StrFormat("  submission: %zu scenarios in %s\n", evaluations.size(), run.submission_out);
   std::fputs(t.c_str(), out);
   return 0;

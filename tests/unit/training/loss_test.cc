@@ -1,5 +1,6 @@
 // The training loss's end-of-agents term: its targets at a sequence's first step (the scene's placement) reported
-// alone as "end0", and weighted by scene_end_weight in the end head's mean.
+// alone as "end0", and weighted by scene_end_weight in the end head's mean; placement_weight scales the placement
+// heads' terms.
 #include <gtest/gtest.h>
 
 #include "tests/unit/training/training_fixture.h"
@@ -41,6 +42,30 @@ TEST(Loss, SceneEndTargetsAreReportedAloneAndWeighted) {
   EXPECT_NE(plain.heads.at("end0").loss, plain.heads.at("end").loss);
   // The reported stats stay unweighted.
   EXPECT_DOUBLE_EQ(weighted.heads.at("end").loss, plain.heads.at("end").loss);
+}
+
+TEST(Loss, PlacementWeightScalesTheTypePointerAndStateHeadsAlone) {
+  const ModelConfig c = testing::tiny_config(1);
+  torch::manual_seed(1);
+  TorchModel model(init_weights(c, 1));
+  TeacherForcedExample ex;
+  ASSERT_NO_FATAL_FAILURE(testing::small_example(testing::kRealTfRecord, c, &ex));
+  const Batch b = make_batch({&ex});
+  torch::NoGradGuard no_grad;
+  const HeadLogits logits = model.heads(b, model.forward(b));
+  const Loss plain = compute_loss(logits, b, Stage::all_heads);
+  const double w = 3;
+  const Loss weighted = compute_loss(logits, b, Stage::all_heads, 1.0, w);
+  double placement = 0;
+  for (const char* head : {"type", "segment", "state"}) {
+    ASSERT_GT(plain.heads.at(head).count, 0) << head;
+    placement += plain.heads.at(head).loss;
+    EXPECT_DOUBLE_EQ(weighted.heads.at(head).loss, plain.heads.at(head).loss) << head;  // stats unweighted
+  }
+  EXPECT_NEAR(weighted.total.item<double>() - plain.total.item<double>(), (w - 1) * placement, 1e-4);
+  // Stage 1 trains none of them: the weight changes nothing there.
+  EXPECT_NEAR(compute_loss(logits, b, Stage::motion_and_lights, 1.0, w).total.item<double>(),
+              compute_loss(logits, b, Stage::motion_and_lights).total.item<double>(), 1e-6);
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
-// Where full mode's agents stand: counts in the region and the offroad share of vehicles, on a hand-made road.
+// Where full mode's agents stand: counts in the region, the offroad share of vehicles and how many of them stand, on
+// a hand-made road.
 #include "offline/eval/placed_agents.h"
 
 #include <gtest/gtest.h>
@@ -34,15 +35,29 @@ TEST(PlacedAgents, CountsEveryTypeAndScoresVehiclesOnly) {
   const Scenario s = road();
   const RoadEdges edges = RoadEdges::from_scenario(s);
   const std::vector<InitialAgent> agents = {
-      {0, 0, 0, 4, 2, 0, 0, ObjectType::vehicle},          // on the road
-      {0, 4.5, 0, 4, 2, 0, 0, ObjectType::vehicle},        // a corner 0.5 m past the left edge
-      {0, 20, 0, 4, 2, 0, 0, ObjectType::vehicle},         // far off the road
-      {0, 8, 0, 0.5, 0.5, 0, 0, ObjectType::pedestrian}};  // off the road, as pedestrians are: not scored
+      {0, 0, 0, 4, 2, 3, 4, ObjectType::vehicle},            // on the road, at 5 m/s
+      {0, 4.5, 0, 4, 2, 0.3, 0, ObjectType::vehicle},        // a corner 0.5 m past the left edge; standing
+      {0, 20, 0, 4, 2, 0, 0, ObjectType::vehicle},           // far off the road; standing
+      {0, 8, 0, 0.5, 0.5, 1.5, 0, ObjectType::pedestrian}};  // off the road, as pedestrians are: not scored
   // No z given: the model's agents stand at the ground (the nearest map point's z).
   const PlacedAgents p = placed_agents(agents, {}, s, edges);
   EXPECT_EQ(p.agents, 4);
   EXPECT_EQ(p.vehicles, 3);
   EXPECT_EQ(p.offroad_vehicles, 2);
+  EXPECT_DOUBLE_EQ(offroad_share(p), 2.0 / 3);
+  // Speeds: vehicles only, below kStandingSpeed standing.
+  EXPECT_EQ(p.all_vehicles, 3);
+  EXPECT_EQ(p.standing_vehicles, 2);
+  EXPECT_DOUBLE_EQ(standing_share(p), 2.0 / 3);
+  EXPECT_DOUBLE_EQ(mean_vehicle_speed(p), 5.3 / 3);
+  // Summed over rollouts, every count and the speed sum add up.
+  PlacedAgents sum = p;
+  sum += p;
+  EXPECT_EQ(sum.agents, 8);
+  EXPECT_EQ(sum.offroad_vehicles, 4);
+  EXPECT_EQ(sum.standing_vehicles, 4);
+  EXPECT_DOUBLE_EQ(mean_vehicle_speed(sum), 5.3 / 3);
+  EXPECT_TRUE(std::isnan(standing_share(PlacedAgents{})));
 }
 
 TEST(PlacedAgents, NoRoadEdgeScoresNoVehicle) {
@@ -53,6 +68,8 @@ TEST(PlacedAgents, NoRoadEdgeScoresNoVehicle) {
   EXPECT_EQ(p.agents, 1);
   EXPECT_EQ(p.vehicles, 0);
   EXPECT_EQ(p.offroad_vehicles, 0);
+  EXPECT_TRUE(std::isnan(offroad_share(p)));
+  EXPECT_EQ(p.all_vehicles, 1);  // its speed still counts
 }
 
 TEST(PlacedAgents, LogSideKeepsTheRegionAndTheSdcRule) {
