@@ -20,6 +20,9 @@ let socket: WebSocket | null = null;
 let liveMap: MapFeature[] | null = null;
 let lastTick: TickMessage | null = null; // the tick on the screen
 let latestTick: TickMessage | null = null; // the last one received (newer while paused)
+// How the watched session's stream ended ("session 'ID' closed"); kept so that a redraw after it (the map arriving
+// late, a pan) still says so.
+let liveEnd = "";
 const trails = new Map<number, number[]>();
 let leaving: { agent: Agent; until: number }[] = [];
 const lastSeen = new Map<number, Agent>();
@@ -138,6 +141,7 @@ function watch(id: string) {
   liveMap = null;
   lastTick = null;
   latestTick = null;
+  liveEnd = "";
   trails.clear();
   leaving = [];
   lastSeen.clear();
@@ -156,7 +160,7 @@ function watch(id: string) {
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data as string);
     if (msg.type === "error") { $("error").dataset.source = "watch"; showError(msg.message); return; }
-    if (msg.type === "end") { $("status").textContent = msg.message; return; }
+    if (msg.type === "end") { liveEnd = msg.message; draw(); return; }
     if (msg.type === "session") {
       if ($("error").dataset.source === "watch") clearError();
       if (msg.map) {
@@ -330,6 +334,7 @@ function draw() {
   } else if (mode === "live") {
     label = `session ${watched}: waiting for its first tick`;
   }
+  if (mode === "live" && liveEnd) label = `${liveEnd}; ${label}`;
   if (follow && ego) { view.cx = ego[2]; view.cy = ego[3]; }
   else if (follow && !ego && scene.agents.length && view.cx === 0 && view.cy === 0) fitTo(scene);
   const drawn = renderer.draw(scene, view);
