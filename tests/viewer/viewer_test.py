@@ -161,8 +161,8 @@ class LiveTest(unittest.TestCase):
         page.wait("window.__viewer.ticksDrawn.includes(0)")
         self.server.stub.CloseSession(pb.CloseSessionRequest(session_id=r.session_id))
         page.wait("document.getElementById('status').textContent.includes('closed')")
-        # A redraw after the end (the map arriving late, a pan or a resize) still says so: the map's answer once came
-        # after the end and its redraw wrote the last tick's label over it.
+        # A redraw after the end (the map's answer arriving after it, a pan, a resize) still says so: such a redraw
+        # used to write the last tick's label over it.
         self.assertTrue(page.eval("window.dispatchEvent(new Event('resize'))"))
         self.assertIn("closed", page.eval("document.getElementById('status').textContent"))
 
