@@ -11,12 +11,24 @@
 namespace ss::train {
 namespace {
 
-TEST(Loss, SceneEndTargetsAreReportedAloneAndWeighted) {
-  const ModelConfig c = testing::tiny_config(1);
-  torch::manual_seed(1);
-  TorchModel model(init_weights(c, 1));
+// A tiny model's head logits on one real example.
+class LossTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const ModelConfig c = testing::tiny_config(1);
+    torch::manual_seed(1);
+    TorchModel model(init_weights(c, 1));
+    ASSERT_NO_FATAL_FAILURE(testing::small_example(testing::kRealTfRecord, c, &ex));
+    b = make_batch({&ex});
+    torch::NoGradGuard no_grad;
+    logits = model.heads(b, model.forward(b));
+  }
   TeacherForcedExample ex;
-  ASSERT_NO_FATAL_FAILURE(testing::small_example(testing::kRealTfRecord, c, &ex));
+  Batch b;
+  HeadLogits logits;
+};
+
+TEST_F(LossTest, SceneEndTargetsAreReportedAloneAndWeighted) {
   int first = 0, all = 0;
   for (size_t i = 0; i < ex.tokens.size(); ++i) {
     if (ex.end_target[i] == kNoTarget) continue;
@@ -26,9 +38,7 @@ TEST(Loss, SceneEndTargetsAreReportedAloneAndWeighted) {
   ASSERT_GT(first, 1);
   ASSERT_GT(all, first);
 
-  const Batch b = make_batch({&ex});
   torch::NoGradGuard no_grad;
-  const HeadLogits logits = model.heads(b, model.forward(b));
   const Loss plain = compute_loss(logits, b, Stage::all_heads);
   EXPECT_EQ(plain.heads.at("end").count, all);
   EXPECT_EQ(plain.heads.at("end0").count, first);
@@ -44,15 +54,8 @@ TEST(Loss, SceneEndTargetsAreReportedAloneAndWeighted) {
   EXPECT_DOUBLE_EQ(weighted.heads.at("end").loss, plain.heads.at("end").loss);
 }
 
-TEST(Loss, PlacementWeightScalesTheTypePointerAndStateHeadsAlone) {
-  const ModelConfig c = testing::tiny_config(1);
-  torch::manual_seed(1);
-  TorchModel model(init_weights(c, 1));
-  TeacherForcedExample ex;
-  ASSERT_NO_FATAL_FAILURE(testing::small_example(testing::kRealTfRecord, c, &ex));
-  const Batch b = make_batch({&ex});
+TEST_F(LossTest, PlacementWeightScalesTheTypePointerAndStateHeadsAlone) {
   torch::NoGradGuard no_grad;
-  const HeadLogits logits = model.heads(b, model.forward(b));
   const Loss plain = compute_loss(logits, b, Stage::all_heads);
   const double w = 3;
   const Loss weighted = compute_loss(logits, b, Stage::all_heads, 1.0, w);
